@@ -1,0 +1,1 @@
+"""fakes layer of hilnav (see DESIGN.md)."""

@@ -1,0 +1,5 @@
+import sys
+
+from hilnav.cli import main
+
+sys.exit(main())

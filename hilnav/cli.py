@@ -1,0 +1,51 @@
+"""The ``hilnav`` command line: one sub-command per module in ``hilnav.commands``.
+
+Each command module exposes ``register(subparsers)`` which adds its parser and sets
+``func`` to a callable taking the parsed arguments and returning an exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from hilnav import __version__
+from hilnav.errors import CliError
+
+# Sub-command modules, in the order ``hilnav --help`` lists them.
+COMMANDS: tuple[str, ...] = (
+    "hilnav.commands.fake",
+    "hilnav.commands.probe",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hilnav",
+        description="Drivers, emulated devices and navigation for a Pioneer 3-DX with cheap sensors.",
+    )
+    parser.add_argument("--version", action="version", version=f"hilnav {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except CliError as exc:
+        print(f"hilnav {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Sub-commands of the ``hilnav`` CLI, one module each (see ``hilnav.cli``)."""

@@ -1,0 +1,1 @@
+"""localization layer of hilnav (see DESIGN.md)."""

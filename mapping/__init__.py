@@ -1,0 +1,1 @@
+"""mapping layer of hilnav (see DESIGN.md)."""

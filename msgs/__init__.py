@@ -1,0 +1,35 @@
+"""Typed messages shared by every layer of hilnav (layer 1: no I/O, no imports but stdlib).
+
+SI units throughout (metres, radians, seconds, volts); stamps are integer nanoseconds.
+"""
+
+from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, schema_name, to_dict
+from msgs.diagnostics import DeviceDiagnostics
+from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
+from msgs.geometry import Interval, Pose2D, wrap_angle
+from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
+from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
+
+__all__ = [
+    "DecodeError",
+    "DeviceDiagnostics",
+    "GpsFix",
+    "GyroSample",
+    "HeadingEstimate",
+    "Interval",
+    "IrScan",
+    "IrStatus",
+    "Pose2D",
+    "PoseBox",
+    "PoseEstimate",
+    "RobotInfo",
+    "RobotOdometry",
+    "VelocityCommand",
+    "decode",
+    "encode",
+    "from_dict",
+    "json_schema",
+    "schema_name",
+    "to_dict",
+    "wrap_angle",
+]

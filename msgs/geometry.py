@@ -1,0 +1,40 @@
+"""Planar geometry values: poses, covariances, boxes. Metres and radians."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+def wrap_angle(a: float) -> float:
+    """Wrap an angle in radians to (-pi, pi]."""
+    w = math.remainder(a, 2.0 * math.pi)
+    return math.pi if w == -math.pi else w
+
+
+@dataclass(frozen=True, slots=True)
+class Pose2D:
+    """A planar pose: x, y in metres, theta in radians (wrapped to (-pi, pi])."""
+
+    x: float = 0.0
+    y: float = 0.0
+    theta: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class Interval:
+    """A closed interval [lo, hi]; lo > hi means empty."""
+
+    lo: float
+    hi: float
+
+    @property
+    def empty(self) -> bool:
+        return self.lo > self.hi
+
+    @property
+    def width(self) -> float:
+        return max(0.0, self.hi - self.lo)
+
+    def contains(self, v: float) -> bool:
+        return self.lo <= v <= self.hi
