@@ -1,0 +1,30 @@
+"""Shared test helpers: run the ``hilnav`` CLI of *this* checkout in a subprocess."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared"
+HILNAV = [sys.executable, "-m", "hilnav"]
+
+
+def hilnav_env(**extra: str) -> dict[str, str]:
+    """Environment for subprocesses: this checkout first on PYTHONPATH, unbuffered output."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env["PYTHONUNBUFFERED"] = "1"
+    env.update(extra)
+    return env
+
+
+@pytest.fixture
+def shared_dir() -> Path:
+    """The project's shared folder (papers, protocols, data); skips if absent."""
+    if not SHARED.is_dir():
+        pytest.skip(f"shared folder not found at {SHARED}")
+    return SHARED
