@@ -9,7 +9,20 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared"
+
+
+def _find_shared() -> Path:
+    """``../shared`` beside the checkout (CI), or the nearest ancestor's ``shared``."""
+    env = os.environ.get("HILNAV_SHARED")
+    if env:
+        return Path(env)
+    for parent in ROOT.parents:
+        if (parent / "shared" / "DESIGN.md").is_file():
+            return parent / "shared"
+    return ROOT.parent / "shared"
+
+
+SHARED = _find_shared()
 HILNAV = [sys.executable, "-m", "hilnav"]
 
 
