@@ -1,0 +1,68 @@
+"""The contract every device codec and driver follows, so the daemon can wire any of them.
+
+A *codec* is pure: ``feed(data, stamp_ns)`` takes whatever bytes arrived (any split,
+any garbage) and returns the messages completed by them; it never raises on input and
+keeps :class:`CodecStats`. A *driver* owns a transport, does the device's handshake and
+keep-alive, and offers ``read(timeout_s)``: block at most ``timeout_s``, return the
+decoded messages (possibly none), reconnect by itself when the link drops. The daemon
+runs one thread per driver calling ``read`` in a loop; ``on_raw`` sees every chunk of
+raw bytes (for the MCAP log). Stamps come from an injected ``clock`` (ns), so replay
+from a file can use recorded time.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from msgs import DeviceDiagnostics
+
+Clock = Callable[[], int]
+RawHook = Callable[[bytes, int], None]
+
+
+def wall_clock_ns() -> int:
+    """Default clock of drivers: UTC wall time in nanoseconds."""
+    return time.time_ns()
+
+
+@dataclass
+class CodecStats:
+    """Counters a codec keeps about its input stream."""
+
+    frames_ok: int = 0
+    bad_checksums: int = 0
+    resyncs: int = 0
+    bytes_skipped: int = 0
+    frames_lost: int = 0  # gaps in sequence numbers, where the protocol has them
+
+
+class Codec(Protocol):
+    stats: CodecStats
+
+    def feed(self, data: bytes, stamp_ns: int) -> list[Any]:
+        """Messages completed by ``data``; garbage is counted and skipped, never raised."""
+        ...
+
+
+class Driver(Protocol):
+    device: str
+    on_raw: RawHook | None
+
+    def open(self) -> None:
+        """Connect (and handshake); raises DeviceError with a clear message on failure."""
+        ...
+
+    def read(self, timeout_s: float) -> list[Any]:
+        """Block at most ``timeout_s``; return decoded messages; reconnects by itself."""
+        ...
+
+    def close(self) -> None: ...
+
+    def diagnostics(self, stamp_ns: int) -> DeviceDiagnostics: ...
+
+
+class DeviceError(OSError):
+    """A device cannot be opened or used: the message says which port and what to do."""
