@@ -159,13 +159,30 @@ def test_missing_port_gives_a_clear_error():
         ArcosDriver("/dev/ttyUSB-does-not-exist").open()
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores file permissions")
-def test_permission_denied_gives_a_clear_error(tmp_path):
-    p = tmp_path / "tty"
-    p.write_bytes(b"")
-    p.chmod(0)
-    with pytest.raises(DeviceError, match="permission denied"):
-        ArcosDriver(str(p)).open()
+def test_permission_denied_gives_a_clear_error(fake):
+    """Open the fake's pty as an unprivileged user (a forked child drops root)."""
+    runner, _ = fake
+    pts = os.path.realpath(runner.ports()["arcos"])
+    os.chmod(pts, 0o600)
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # child: become nobody (if root), try to open, report the message
+        try:
+            if os.geteuid() == 0:
+                os.setgroups([])
+                os.setgid(65534)
+                os.setuid(65534)
+            ArcosDriver(pts).open()
+            os.write(w, b"opened")
+        except DeviceError as exc:
+            os.write(w, str(exc).encode())
+        finally:
+            os._exit(0)
+    os.close(w)
+    os.waitpid(pid, 0)
+    message = os.read(r, 4096).decode()
+    os.close(r)
+    assert "permission denied" in message and "dialout" in message
 
 
 def test_unreachable_tcp_gives_a_clear_error():
