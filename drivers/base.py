@@ -37,6 +37,7 @@ class CodecStats:
     resyncs: int = 0
     bytes_skipped: int = 0
     frames_lost: int = 0  # gaps in sequence numbers, where the protocol has them
+    malformed: int = 0  # frames with a good checksum whose content could not be decoded
 
 
 class Codec(Protocol):

@@ -17,6 +17,7 @@ from hilnav.errors import CliError
 COMMANDS: tuple[str, ...] = (
     "hilnav.commands.fake",
     "hilnav.commands.probe",
+    "hilnav.commands.demo",
 )
 
 

@@ -1,0 +1,226 @@
+"""Driver <-> emulated Pioneer over real ptys."""
+
+import json
+import math
+import os
+import subprocess
+import time
+
+import pytest
+from conftest import HILNAV, hilnav_env
+
+from drivers.arcos.commands import Cmd, encode_command
+from drivers.arcos.driver import ArcosDriver, ArcosOptions
+from drivers.base import DeviceError
+from fakes.pioneer import PioneerEmulator, PioneerFaults
+from fakes.runner import FakeRunner
+from fakes.world import World
+from msgs import Pose2D, RobotOdometry
+
+
+@pytest.fixture
+def fake():
+    world = World.from_name("open_field", seed=4)
+    world.add_robot("r1", Pose2D(0.0, 0.0, 0.0))
+    runner = FakeRunner(world)
+    emu = runner.add(PioneerEmulator("r1", seed=4))
+    runner.start()
+    yield runner, emu
+    runner.stop()
+
+
+def pump(driver, seconds, v=None, w=0.0):
+    last = None
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if v is not None:
+            driver.set_velocity(v, w)
+        for m in driver.read(0.05):
+            if isinstance(m, RobotOdometry):
+                last = m
+    return last
+
+
+def test_handshake_info_and_sips(fake):
+    runner, emu = fake
+    d = ArcosDriver(runner.ports()["arcos"])
+    info = d.open()
+    assert (info.name, info.robot_class, info.subclass) == ("hilnav-fake", "Pioneer", "p3dx-sh")
+    assert info.config["Watchdog"] == 2000
+    msgs = [m for m in (pump(d, 0.5),) if m]
+    assert msgs and msgs[0].motors_enabled
+    diag = d.diagnostics(0)
+    assert diag.connected and diag.frames_ok >= 4 and diag.bad_checksums == 0
+    d.close()
+    time.sleep(0.2)
+    assert not emu.opened  # CLOSE ended the session
+
+
+def test_drive_and_pose_matches_truth(fake):
+    runner, _ = fake
+    d = ArcosDriver(runner.ports()["arcos"])
+    d.open()
+    pump(d, 3.0, v=0.4, w=0.0)
+    pump(d, 2.0, v=0.2, w=0.5)
+    last = pump(d, 1.0, v=0.0, w=0.0)
+    truth = runner.world.robots["r1"].pose
+    d.close()
+    assert last.pose.x > 0.8
+    # Encoder odometry vs truth: only slip and quantisation separate them.
+    assert math.hypot(last.pose.x - truth.x, last.pose.y - truth.y) < 0.05
+    assert abs(math.remainder(last.pose.theta - truth.theta, 2 * math.pi)) < 0.05
+
+
+def test_wheel_command_vel2(fake):
+    runner, _ = fake
+    d = ArcosDriver(runner.ports()["arcos"])
+    d.open()
+    d.set_wheels(0.2, 0.2)
+    last = pump(d, 1.5)
+    d.close()
+    assert last.left_vel_mps == pytest.approx(0.2) and last.right_vel_mps == pytest.approx(0.2)
+
+
+def test_watchdog_stops_the_robot_when_the_driver_goes_silent(fake):
+    runner, emu = fake
+    d = ArcosDriver(runner.ports()["arcos"])
+    d.open()
+    pump(d, 1.0, v=0.3)
+    robot = runner.world.robots["r1"]
+    assert robot.left_cmd_mps > 0.2
+    time.sleep(3.5)  # no reads, no pulses: the firmware's 2 s watchdog trips
+    assert emu.watchdog_trips == 1
+    assert robot.left_cmd_mps == 0.0 and robot.right_cmd_mps == 0.0
+    d.close()
+
+
+def test_keepalive_prevents_watchdog(fake):
+    runner, emu = fake
+    d = ArcosDriver(runner.ports()["arcos"])
+    d.open()
+    d.set_velocity(0.2, 0.0)
+    pump(d, 3.0)  # only reads: the driver's pulses keep the robot going
+    assert emu.watchdog_trips == 0 and runner.world.robots["r1"].left_cmd_mps > 0.1
+    d.close()
+
+
+def test_reconnect_after_the_port_vanishes_and_returns(fake):
+    runner, emu = fake
+    d = ArcosDriver(runner.ports()["arcos"], ArcosOptions(reconnect_initial_s=0.1))
+    d.open()
+    pump(d, 0.3)
+    emu.vanish()
+    pump(d, 0.5)
+    assert not d.connected and d.last_error
+    emu.reappear()
+    last = None
+    end = time.monotonic() + 8
+    while time.monotonic() < end and (last is None or not d.connected):
+        last = pump(d, 0.3) or last
+    assert d.connected and d.reconnects == 1 and last is not None
+    d.close()
+
+
+def test_already_open_robot_is_closed_and_resynced(fake):
+    runner, emu = fake
+    first = ArcosDriver(runner.ports()["arcos"])
+    first.open()
+    first._t.close()  # the client dies without CLOSE: the robot keeps streaming SIPs
+    first._t = None
+    second = ArcosDriver(runner.ports()["arcos"])
+    info = second.open()
+    assert info.name == "hilnav-fake" and emu.sessions == 2
+    second.close()
+
+
+def test_corrupted_link_still_delivers(tmp_path):
+    world = World.from_name("open_field", seed=1)
+    world.add_robot("r1", Pose2D())
+    runner = FakeRunner(world)
+    runner.add(
+        PioneerEmulator(
+            "r1", faults=PioneerFaults(corrupt_byte_prob=0.01, drop_packet_prob=0.05), seed=2
+        )
+    )
+    with runner:
+        d = ArcosDriver(runner.ports()["arcos"], ArcosOptions(sync_attempts=10))
+        d.open()
+        n = 0
+        end = time.monotonic() + 2.0
+        while time.monotonic() < end:
+            n += sum(isinstance(m, RobotOdometry) for m in d.read(0.1))
+        diag = d.diagnostics(0)
+        d.close()
+    assert n >= 10 and diag.bad_checksums + diag.bytes_skipped > 0
+
+
+def test_missing_port_gives_a_clear_error():
+    with pytest.raises(DeviceError, match="no such port"):
+        ArcosDriver("/dev/ttyUSB-does-not-exist").open()
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores file permissions")
+def test_permission_denied_gives_a_clear_error(tmp_path):
+    p = tmp_path / "tty"
+    p.write_bytes(b"")
+    p.chmod(0)
+    with pytest.raises(DeviceError, match="permission denied"):
+        ArcosDriver(str(p)).open()
+
+
+def test_unreachable_tcp_gives_a_clear_error():
+    with pytest.raises(DeviceError, match="cannot connect"):
+        ArcosDriver("tcp://127.0.0.1:1").open()
+
+
+def test_recorded_file_is_decoded_without_handshake(tmp_path, fake):
+    runner, _ = fake
+    rec = bytearray()
+    d = ArcosDriver(runner.ports()["arcos"], on_raw=lambda data, ns: rec.extend(data))
+    d.open()
+    live = [m for m in [pump(d, 1.0, v=0.2)] if m]
+    d.close()
+    path = tmp_path / "arcos.bin"
+    path.write_bytes(bytes(rec))
+    f = ArcosDriver(str(path))
+    f.open()
+    replayed = []
+    while not f.eof:
+        replayed += [m for m in f.read(0.1) if isinstance(m, RobotOdometry)]
+    assert len(replayed) >= 8 and live
+
+
+def test_cli_fake_and_probe_drive():
+    fake = subprocess.Popen(
+        [*HILNAV, "fake", "--duration", "20", "--plan", "open_field"],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=hilnav_env(),
+    )
+    try:
+        ports = json.loads(fake.stdout.readline())
+        out = subprocess.run(
+            [*HILNAV, "probe", "arcos", ports["arcos"], "--drive", "0.3,0", "--seconds", "2"],
+            capture_output=True,
+            text=True,
+            env=hilnav_env(),
+            timeout=30,
+        )
+        assert out.returncode == 0, out.stderr
+        lines = [json.loads(x) for x in out.stdout.splitlines()]
+        assert lines[0]["robot"]["subclass"] == "p3dx-sh"
+        assert len(lines) >= 12 and lines[-1]["x"] > 0.2 and lines[-1]["moving"]
+    finally:
+        fake.terminate()
+        assert fake.wait(10) == 0
+
+
+def test_cli_probe_bad_port_message():
+    out = subprocess.run(
+        [*HILNAV, "probe", "arcos", "/dev/nope"], capture_output=True, text=True, env=hilnav_env()
+    )
+    assert out.returncode == 2 and "no such port" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_pulse_is_a_valid_command_bytes():
+    assert encode_command(Cmd.PULSE) == b"\xfa\xfb\x03\x00\x00\x00"
