@@ -7,16 +7,23 @@ fakes.world.gps_model). The world's map frame is east/north metres about ``datum
 
 :class:`NmeaReplayEmulator` serves a recorded NMEA log (gpsd's format: ``#`` comment lines
 are skipped) on a pty, like gpsfake: at the log's own pace (epochs spaced by the time of
-day in their sentences, 1 s when unknown) or as fast as the reader takes them.
+day in their sentences, 1 s when unknown) or as fast as the reader takes them. Like
+gpsfake it waits for a reader before it starts: the pty's master is in packet mode, where
+the reader's open (pyserial flushes its input when it opens a port) shows up as a
+FLUSHREAD event; otherwise the first epochs would be thrown away by that flush.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import fcntl
 import math
 import os
 import select
+import struct
+import termios
 import threading
+import time
 from pathlib import Path
 
 from drivers.nmea.local import Datum
@@ -145,8 +152,14 @@ class NmeaReplayEmulator:
     """A recorded NMEA log on a pty (see the module docstring); not driven by the world."""
 
     def __init__(
-        self, path: str | Path, name: str = "gps", fast: bool = False, loop: bool = False
+        self,
+        path: str | Path,
+        name: str = "gps",
+        fast: bool = False,
+        loop: bool = False,
+        wait_for_reader_s: float = 60.0,
     ) -> None:
+        self.wait_for_reader_s = wait_for_reader_s
         self.name = name
         self.path = Path(path)
         try:
@@ -166,6 +179,8 @@ class NmeaReplayEmulator:
 
     def start(self, runner) -> None:  # noqa: ANN001
         self.port = VirtualSerialPort(runner.link_dir / self.name)
+        assert self.port.master is not None
+        fcntl.ioctl(self.port.master, termios.TIOCPKT, struct.pack("i", 1))
         self._thread = threading.Thread(target=self._serve, name=f"replay-{self.name}", daemon=True)
         self._thread.start()
 
@@ -199,9 +214,25 @@ class NmeaReplayEmulator:
             view = view[n:]
         return not view
 
+    def _wait_for_reader(self) -> None:
+        """Until the reader opens the port (a FLUSHREAD packet-mode event) or time is up."""
+        end = time.monotonic() + self.wait_for_reader_s
+        while not self._stop.is_set() and (left := end - time.monotonic()) > 0:
+            fd = self.port.master if self.port else None
+            if fd is None:
+                return
+            ready, _, _ = select.select([fd], [], [], min(left, 0.1))
+            if ready:
+                try:
+                    status = os.read(fd, 4096)
+                except OSError:
+                    return
+                if status and status[0] & termios.TIOCPKT_FLUSHREAD:
+                    self._stop.wait(0.05)  # let the reader finish its setup
+                    return
+
     def _serve(self) -> None:
-        # give the reader a moment to open the port before the first epoch
-        self._stop.wait(0.2)
+        self._wait_for_reader()
         while not self._stop.is_set():
             prev: int | None = None
             for chunk in self.epochs:
