@@ -24,7 +24,12 @@ class FakeOptions:
     vanish_for: float = 2.0
     replay: dict[str, str] = field(default_factory=dict)
     config: str | None = None
-    devices: tuple[str, ...] = ("arcos",)
+    devices: tuple[str, ...] = ("arcos", "ir", "gyro", "gps")
+    ir_link: str = "serial"  # serial | slcan | python-can (virtual bus, in-process only)
+    ir_rate_hz: int = 20
+    gyro_rate_hz: int = 100
+    gps_rate_hz: float = 1.0
+    replay_fast: bool = False
 
 
 def build_fakes(opts: FakeOptions) -> FakeRunner:
@@ -39,15 +44,58 @@ def build_fakes(opts: FakeOptions) -> FakeRunner:
     unknown = set(opts.replay) - {"gps"}
     if unknown:
         raise CliError(f"--replay {sorted(unknown)[0]}=...: only gps can be replayed from a log")
+    bad = set(opts.devices) - {"arcos", "ir", "gyro", "gps"}
+    if bad:
+        raise CliError(
+            f"--devices: unknown device {sorted(bad)[0]!r}; choose from arcos,ir,gyro,gps"
+        )
     world = World.from_name(opts.plan, seed=opts.seed)
     world.add_robot(opts.robot)
     runner = FakeRunner(world, link_dir=opts.link_dir)
     faults = PioneerFaults(opts.corrupt, opts.drop, opts.vanish_after, opts.vanish_for)
     from fakes.pioneer import PioneerConfig
 
-    runner.add(
-        PioneerEmulator(
-            opts.robot, PioneerConfig(name=opts.robot, baud=opts.baud), faults, seed=opts.seed
+    if "arcos" in opts.devices:
+        runner.add(
+            PioneerEmulator(
+                opts.robot, PioneerConfig(name=opts.robot, baud=opts.baud), faults, seed=opts.seed
+            )
         )
-    )
+    _add_sensors(runner, opts)
     return runner
+
+
+def _add_sensors(runner: FakeRunner, opts: FakeOptions) -> None:
+    """The IR board, the gyro and the GPS (simulated, or a replayed NMEA log)."""
+    from drivers.irboard import IrBoardConfig
+    from fakes.gps import GpsEmulator, NmeaReplayEmulator
+    from fakes.gyro import GyroEmulator
+    from fakes.irboard import IrBoardEmulator
+    from fakes.world.gps_model import GpsErrorModel
+    from fakes.world.gyro_model import GyroErrorModel
+
+    if opts.ir_link not in ("serial", "slcan", "python-can"):
+        raise CliError(f"--ir-link {opts.ir_link!r}: choose serial, slcan or python-can")
+    if not 1.0 <= opts.gps_rate_hz <= 10.0:
+        raise CliError(f"--gps-rate {opts.gps_rate_hz}: a GPS reports at 1 to 10 Hz")
+    if not 1 <= opts.gyro_rate_hz <= 1000 or not 1 <= opts.ir_rate_hz <= 1000:
+        raise CliError("--gyro-rate / --ir-rate: between 1 and 1000 Hz")
+    if "ir" in opts.devices:
+        runner.add(
+            IrBoardEmulator(
+                opts.robot,
+                IrBoardConfig(rate_hz=opts.ir_rate_hz),
+                link=opts.ir_link,
+                can_channel=f"hilnav-{opts.robot}",
+                seed=opts.seed + 1,
+            )
+        )
+    if "gyro" in opts.devices:
+        runner.add(GyroEmulator(opts.robot, opts.gyro_rate_hz, GyroErrorModel(seed=opts.seed + 2)))
+    if "gps" in opts.replay:
+        try:
+            runner.add(NmeaReplayEmulator(opts.replay["gps"], fast=opts.replay_fast))
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+    elif "gps" in opts.devices:
+        runner.add(GpsEmulator(opts.robot, opts.gps_rate_hz, GpsErrorModel(seed=opts.seed + 3)))

@@ -40,6 +40,25 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="DEVICE=FILE",
         help="serve a recorded log instead of a simulated device (e.g. gps=nmea.log)",
     )
+    p.add_argument(
+        "--replay-fast",
+        action="store_true",
+        help="serve a replayed log as fast as the reader takes it (default: its own pace)",
+    )
+    p.add_argument(
+        "--ir-link",
+        default="serial",
+        choices=("serial", "slcan", "python-can"),
+        help="IR board on its serial port, or on CAN behind an emulated slcan adapter",
+    )
+    p.add_argument("--ir-rate", type=int, default=20, help="IR board samples per second")
+    p.add_argument("--gyro-rate", type=int, default=100, help="gyro packets per second")
+    p.add_argument("--gps-rate", type=float, default=1.0, help="GPS epochs per second (1-10)")
+    p.add_argument(
+        "--devices",
+        default="arcos,ir,gyro,gps",
+        help="comma-separated devices to emulate (default arcos,ir,gyro,gps)",
+    )
     p.set_defaults(func=run)
 
 
@@ -62,6 +81,12 @@ def run(args: argparse.Namespace) -> int:
         vanish_for=args.vanish_for,
         replay=replay,
         config=args.config,
+        devices=tuple(d.strip() for d in args.devices.split(",") if d.strip()),
+        ir_link=args.ir_link,
+        ir_rate_hz=args.ir_rate,
+        gyro_rate_hz=args.gyro_rate,
+        gps_rate_hz=args.gps_rate,
+        replay_fast=args.replay_fast,
     )
     runner = build_fakes(opts)
     done = threading.Event()

@@ -10,6 +10,7 @@ import time
 
 from drivers.arcos.driver import ArcosDriver, ArcosOptions
 from drivers.base import DeviceError
+from hilnav.commands.probe_sensors import register_sensors
 from hilnav.errors import CliError
 from msgs import RobotInfo, RobotOdometry, to_dict
 
@@ -27,6 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     a.add_argument("--drive", metavar="V,W", help="drive at V m/s and W rad/s while probing")
     a.add_argument("--seconds", type=float, default=5.0, help="how long to probe (default 5)")
     a.set_defaults(func=probe_arcos)
+    register_sensors(dev)
 
 
 def _parse_drive(text: str | None) -> tuple[float, float] | None:

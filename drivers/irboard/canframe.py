@@ -1,0 +1,115 @@
+"""hilnav IR ADC board, CAN framing (docs/protocols/irboard.md).
+
+One classic CAN frame (11-bit id) per board per sample:
+
+- arbitration id ``0x300 + board`` (board 0..127) for samples, ``0x280 + board`` for
+  commands to the board;
+- data = a little-endian bit field: bits 0-3 the sequence number (mod 16), then each
+  channel's raw counts (10 or 12 bits) in channel order, LSB first; the DLC is the fewest
+  bytes that hold them. 8 bytes hold 6 channels of 10 bits or 5 of 12 bits (4 + 6*10 =
+  64); a robot with more sensors uses more boards. The channel count follows from the
+  DLC and the board's configured resolution (each count gives a different DLC).
+- command SET_RATE: data = ``01 | rate u16 LE``.
+
+CAN checks its own CRC, so the payload has none; the 4-bit sequence still counts lost
+frames (gaps of up to 15).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from drivers.base import CodecStats
+from drivers.irboard.serialframe import CMD_SET_RATE, RawSample
+
+SAMPLE_ID_BASE = 0x300
+COMMAND_ID_BASE = 0x280
+MAX_BOARD_ID = 0x7F
+SEQ_BITS = 4
+
+
+def max_channels(adc_bits: int) -> int:
+    return (64 - SEQ_BITS) // adc_bits
+
+
+def dlc_for(channels: int, adc_bits: int) -> int:
+    return (SEQ_BITS + channels * adc_bits + 7) // 8
+
+
+def channels_for_dlc(dlc: int, adc_bits: int) -> int | None:
+    for n in range(1, max_channels(adc_bits) + 1):
+        if dlc_for(n, adc_bits) == dlc:
+            return n
+    return None
+
+
+def pack_sample(s: RawSample) -> tuple[int, bytes]:
+    """(arbitration id, data) of a sample."""
+    if not 0 <= s.board_id <= MAX_BOARD_ID:
+        raise ValueError(f"CAN board id must be 0..{MAX_BOARD_ID}, not {s.board_id}")
+    n = len(s.counts)
+    if not 1 <= n <= max_channels(s.adc_bits):
+        raise ValueError(
+            f"a CAN frame holds 1..{max_channels(s.adc_bits)} channels of {s.adc_bits} bits,"
+            f" not {n}: split the sensors over several boards"
+        )
+    v = s.seq & 0xF
+    mask = (1 << s.adc_bits) - 1
+    for k, c in enumerate(s.counts):
+        v |= (int(c) & mask) << (SEQ_BITS + k * s.adc_bits)
+    dlc = dlc_for(n, s.adc_bits)
+    return SAMPLE_ID_BASE + s.board_id, v.to_bytes(8, "little")[:dlc]
+
+
+def unpack_sample(arb_id: int, data: bytes, adc_bits: int) -> RawSample | None:
+    """Sample of a frame, None if the id is not a sample id or the DLC fits no channel count."""
+    board = arb_id - SAMPLE_ID_BASE
+    if not 0 <= board <= MAX_BOARD_ID:
+        return None
+    n = channels_for_dlc(len(data), adc_bits)
+    if n is None:
+        return None
+    v = int.from_bytes(data, "little")
+    mask = (1 << adc_bits) - 1
+    counts = tuple((v >> (SEQ_BITS + k * adc_bits)) & mask for k in range(n))
+    return RawSample(board, v & 0xF, adc_bits, counts)
+
+
+def pack_set_rate(board_id: int, rate_hz: int) -> tuple[int, bytes]:
+    if not 1 <= rate_hz <= 1000:
+        raise ValueError(f"IR board sample rate must be 1..1000 Hz, not {rate_hz}")
+    return COMMAND_ID_BASE + board_id, bytes((CMD_SET_RATE,)) + int(rate_hz).to_bytes(2, "little")
+
+
+def unpack_command(arb_id: int, data: bytes) -> tuple[int, int] | None:
+    """(board, rate_hz) of a SET_RATE command frame, else None."""
+    board = arb_id - COMMAND_ID_BASE
+    if not 0 <= board <= MAX_BOARD_ID or len(data) != 3 or data[0] != CMD_SET_RATE:
+        return None
+    return board, int.from_bytes(data[1:3], "little")
+
+
+@dataclass
+class CanSampleDecoder:
+    """Frames -> :class:`RawSample` for one board; foreign or malformed frames are counted."""
+
+    board_id: int
+    adc_bits: int = 10
+
+    def __post_init__(self) -> None:
+        self.stats = CodecStats()
+        self._last: int | None = None
+
+    def feed_frame(self, arb_id: int, data: bytes, is_extended: bool = False) -> RawSample | None:
+        if is_extended or arb_id != SAMPLE_ID_BASE + self.board_id:
+            return None  # someone else's frame on a shared bus: not an error
+        s = unpack_sample(arb_id, bytes(data), self.adc_bits)
+        if s is None:
+            self.stats.bytes_skipped += len(data)
+            self.stats.bad_checksums += 1
+            return None
+        if self._last is not None:
+            self.stats.frames_lost += (s.seq - self._last - 1) & 0xF
+        self._last = s.seq
+        self.stats.frames_ok += 1
+        return s

@@ -1,0 +1,44 @@
+"""IR board codecs: serial bytes or CAN frames -> :class:`msgs.IrScan`."""
+
+from __future__ import annotations
+
+from drivers.irboard.canframe import CanSampleDecoder
+from drivers.irboard.convert import IrBoardConfig, IrConverter
+from drivers.irboard.serialframe import SerialFrameDecoder
+from msgs import IrScan
+
+
+class IrSerialCodec:
+    """Serial byte stream of one board -> scans (frames of other boards are skipped)."""
+
+    def __init__(self, config: IrBoardConfig | None = None) -> None:
+        self.config = config or IrBoardConfig()
+        self.decoder = SerialFrameDecoder()
+        self.stats = self.decoder.stats
+        self.converter = IrConverter(self.config)
+
+    def feed(self, data: bytes, stamp_ns: int) -> list[IrScan]:
+        out: list[IrScan] = []
+        for s in self.decoder.feed(data):
+            if s.board_id != self.config.board_id:
+                continue
+            scan = self.converter(s, stamp_ns)
+            if scan is not None:
+                out.append(scan)
+        return out
+
+
+class IrCanCodec:
+    """CAN frames (arbitration id, data) of one board -> scans."""
+
+    def __init__(self, config: IrBoardConfig | None = None) -> None:
+        self.config = config or IrBoardConfig()
+        self.decoder = CanSampleDecoder(self.config.board_id, self.config.adc_bits)
+        self.stats = self.decoder.stats
+        self.converter = IrConverter(self.config)
+
+    def feed_frame(
+        self, arb_id: int, data: bytes, stamp_ns: int, is_extended: bool = False
+    ) -> IrScan | None:
+        s = self.decoder.feed_frame(arb_id, data, is_extended)
+        return None if s is None else self.converter(s, stamp_ns)

@@ -1,0 +1,115 @@
+"""Raw ADC counts of an IR board -> :class:`msgs.IrScan` (volts, ranges, validity flags).
+
+counts -> volts with the board's reference voltage and resolution; volts -> range through
+each channel's Sharp curve (:mod:`drivers.sharp`, the datasheet table or a calibration
+table per sensor), flagged ``too_near`` / ``too_far`` / ``no_return`` / ``invalid``
+outside 1.0-5.5 m rather than clamped; optionally the median of the last N ranges.
+Mounting poses (x, y, yaw in the robot frame) belong to the board's configuration; the
+default is the IR-mapping paper's robot: six sensors facing front and sides.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.irboard.serialframe import RawSample
+from drivers.sharp import STATUS_NAMES, MedianFilter, SharpCurve
+from msgs import IrScan
+
+D = math.pi / 180.0
+# Six sensors on a Pioneer 3-DX body (x forward, y left, metres; yaw radians).
+PAPER_MOUNTS: tuple[tuple[float, float, float], ...] = (
+    (0.20, 0.05, 15 * D),
+    (0.20, -0.05, -15 * D),
+    (0.17, 0.13, 50 * D),
+    (0.17, -0.13, -50 * D),
+    (0.00, 0.19, 90 * D),
+    (0.00, -0.19, -90 * D),
+)
+
+
+@dataclass(frozen=True)
+class IrBoardConfig:
+    """One ADC board: id, resolution, reference, rate, and per-channel sensors."""
+
+    board_id: int = 1
+    adc_bits: int = 10
+    vref_v: float = 5.0
+    rate_hz: int = 20
+    mounts: tuple[tuple[float, float, float], ...] = PAPER_MOUNTS
+    curves: tuple[SharpCurve, ...] = ()  # empty: the datasheet curve on every channel
+    median_window: int = 1  # 1 = no filter
+
+    def __post_init__(self) -> None:
+        if self.adc_bits not in (10, 12):
+            raise ValueError(f"ir.adc_bits must be 10 or 12, not {self.adc_bits}")
+        if not 1 <= len(self.mounts) <= 8:
+            raise ValueError(f"ir.mounts must list 1..8 sensors, not {len(self.mounts)}")
+        if self.curves and len(self.curves) != len(self.mounts):
+            raise ValueError(
+                f"ir.curves has {len(self.curves)} tables for {len(self.mounts)} sensors:"
+                " give one per sensor or none"
+            )
+        if self.vref_v <= 0:
+            raise ValueError(f"ir.vref_v must be > 0, not {self.vref_v}")
+
+    @property
+    def channels(self) -> int:
+        return len(self.mounts)
+
+    def curve(self, i: int) -> SharpCurve:
+        return self.curves[i] if self.curves else _DEFAULT_CURVE
+
+    def mounts_array(self) -> np.ndarray:
+        return np.asarray(self.mounts, dtype=float).reshape(-1, 3)
+
+
+_DEFAULT_CURVE = SharpCurve()
+
+
+@dataclass
+class IrConverter:
+    """Stateful (median filter) conversion of raw samples into scans."""
+
+    config: IrBoardConfig = field(default_factory=IrBoardConfig)
+    mismatched: int = 0  # samples whose channel count or resolution differ from the config
+
+    def __post_init__(self) -> None:
+        w = self.config.median_window
+        self._median = MedianFilter(self.config.channels, w) if w > 1 else None
+
+    def __call__(self, s: RawSample, stamp_ns: int) -> IrScan | None:
+        cfg = self.config
+        if len(s.counts) != cfg.channels or s.adc_bits != cfg.adc_bits:
+            self.mismatched += 1
+            return None
+        counts = np.asarray(s.counts, dtype=float)
+        volts = counts * (cfg.vref_v / ((1 << cfg.adc_bits) - 1))
+        if cfg.curves:
+            ranges = np.empty(cfg.channels)
+            status = np.empty(cfg.channels, dtype=np.int8)
+            for i in range(cfg.channels):
+                r, st = cfg.curve(i).range(volts[i : i + 1])
+                ranges[i], status[i] = r[0], st[0]
+        else:
+            ranges, status = _DEFAULT_CURVE.range(volts)
+        if self._median is not None:
+            ranges = self._median(np.where(status == 0, ranges, np.nan))
+            status = np.where(np.isfinite(ranges), 0, status).astype(np.int8)
+        return IrScan(
+            stamp_ns=stamp_ns,
+            board_id=s.board_id,
+            seq=s.seq,
+            ranges_m=tuple(float(r) for r in ranges),
+            status=tuple(STATUS_NAMES[int(k)] for k in status),  # type: ignore[misc]
+            voltages_v=tuple(float(v) for v in volts),
+            raw_counts=tuple(int(c) for c in s.counts),
+        )
+
+
+def volts_to_counts(volts: np.ndarray, adc_bits: int, vref_v: float) -> np.ndarray:
+    full = (1 << adc_bits) - 1
+    return np.clip(np.round(np.asarray(volts) / vref_v * full), 0, full).astype(np.int64)

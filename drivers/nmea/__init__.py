@@ -1,0 +1,17 @@
+"""NMEA 0183 GPS: sentences, epoch combiner into :class:`msgs.GpsFix`, local metres."""
+
+from drivers.nmea.codec import NmeaCodec, NmeaFramer
+from drivers.nmea.epoch import ROLLOVER_S, EpochCombiner
+from drivers.nmea.local import Datum
+from drivers.nmea.sentences import Sentence, build, xor_checksum
+
+__all__ = [
+    "ROLLOVER_S",
+    "Datum",
+    "EpochCombiner",
+    "NmeaCodec",
+    "NmeaFramer",
+    "Sentence",
+    "build",
+    "xor_checksum",
+]

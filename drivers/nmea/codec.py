@@ -1,0 +1,144 @@
+"""NMEA byte stream -> sentences -> :class:`msgs.GpsFix` (the GPS codec).
+
+Framing: a sentence starts at ``$`` and ends at LF (CR optional). A line is dropped and
+counted when it is overlong (``max_line`` bytes, default 128: Skytraq's PSTI sentences are
+108), holds non-printable bytes (binary noise), or fails the XOR checksum; a line with no
+checksum at all is accepted only with ``require_checksum=False``. A sentence cut short by
+the start of the next (``$GPGGA,12$GPRMC,...``) is dropped and the next one kept, so the
+codec is back in step within one sentence. Bytes outside sentences are skipped and counted.
+"""
+
+from __future__ import annotations
+
+from drivers.base import CodecStats
+from drivers.nmea.epoch import EpochCombiner
+from drivers.nmea.local import Datum
+from drivers.nmea.sentences import PARSERS, Sentence
+from msgs import GpsFix
+
+_HEX = frozenset(b"0123456789ABCDEFabcdef")
+
+
+class NmeaFramer:
+    """Bytes -> checked :class:`Sentence` objects (any talker, any type)."""
+
+    def __init__(self, require_checksum: bool = True, max_line: int = 128) -> None:
+        self.require_checksum = require_checksum
+        self.max_line = max_line
+        self.stats = CodecStats()
+        self.overlong = 0
+        self.noisy = 0
+        self.no_checksum = 0
+        self._buf = bytearray()
+
+    def feed(self, data: bytes) -> list[Sentence]:
+        buf = self._buf
+        buf += data
+        out: list[Sentence] = []
+        pos = 0
+        while True:
+            nl = buf.find(b"\n", pos)
+            if nl < 0:
+                break
+            self._line(bytes(buf[pos:nl]), out)
+            pos = nl + 1
+        if pos:
+            del buf[:pos]
+        if len(buf) > self.max_line:
+            # no end of line in sight: keep only from the last '$' if it may still fit
+            start = buf.rfind(b"$")
+            cut = start if start >= 0 and len(buf) - start <= self.max_line else len(buf)
+            self.overlong += 1
+            self.stats.bytes_skipped += cut
+            self.stats.resyncs += 1
+            del buf[:cut]
+        return out
+
+    def _line(self, line: bytes, out: list[Sentence]) -> None:
+        start = line.rfind(b"$")
+        if start < 0:
+            if line.strip(b"\r"):
+                self.stats.bytes_skipped += len(line) + 1
+                self.stats.resyncs += 1
+            return
+        if start:
+            self.stats.bytes_skipped += start
+            self.stats.resyncs += 1
+        line = line[start:].rstrip(b"\r")
+        if len(line) > self.max_line:
+            self.overlong += 1
+            self.stats.bytes_skipped += len(line)
+            return
+        try:
+            text = line.decode("ascii")
+        except UnicodeDecodeError:
+            self.noisy += 1
+            self.stats.bytes_skipped += len(line)
+            return
+        if not text.isprintable():
+            self.noisy += 1
+            self.stats.bytes_skipped += len(line)
+            return
+        star = text.rfind("*")
+        if star >= 0 and len(text) - star == 3 and _HEX.issuperset(line[star + 1 :]):
+            body = text[1:star]
+            c = 0
+            for b in line[1:star]:
+                c ^= b
+            if c != int(text[star + 1 :], 16):
+                self.stats.bad_checksums += 1
+                self.stats.bytes_skipped += len(line)
+                return
+        elif self.require_checksum:
+            self.no_checksum += 1
+            self.stats.bytes_skipped += len(line)
+            return
+        else:
+            body = text[1:]
+        address, _, rest = body.partition(",")
+        if len(address) < 3 or not address.isalnum():
+            self.stats.bytes_skipped += len(line)
+            return
+        self.stats.frames_ok += 1
+        if address[0] == "P":  # proprietary: $P<maker><type>
+            out.append(Sentence("P", address[1:], tuple(rest.split(","))))
+        else:
+            out.append(Sentence(address[:2], address[2:], tuple(rest.split(","))))
+
+
+class NmeaCodec:
+    """Bytes -> :class:`msgs.GpsFix`, one per epoch (see :mod:`drivers.nmea.epoch`)."""
+
+    def __init__(
+        self,
+        require_checksum: bool = True,
+        max_line: int = 128,
+        datum: Datum | None = None,
+        rollover_before_year: int | None = None,
+    ) -> None:
+        self.framer = NmeaFramer(require_checksum, max_line)
+        self.combiner = EpochCombiner(datum, rollover_before_year)
+        self.stats = self.framer.stats
+        self.ignored = 0  # well-formed sentences of types we do not use (GSV, GLL, ...)
+        self.malformed = 0  # supported types whose fields do not parse
+
+    def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix]:
+        out: list[GpsFix] = []
+        for s in self.framer.feed(data):
+            parser = PARSERS.get(s.type)
+            if parser is None:
+                self.ignored += 1
+                continue
+            try:
+                rec = parser(s.fields)
+            except (ValueError, IndexError):
+                rec = None
+            if rec is None:
+                self.malformed += 1
+                continue
+            out.extend(self.combiner.add(s.talker, s.type, rec, stamp_ns))
+        return out
+
+    def flush(self) -> list[GpsFix]:
+        """The last epoch's fix at the end of a stream."""
+        return self.combiner.flush()

@@ -1,0 +1,78 @@
+"""Base of the emulated streaming sensors on a virtual serial port (IR board, gyro, GPS).
+
+The runner calls ``tick(dt)`` with the world locked: the emulator samples the truth and
+writes its frames at once. Writes never block: when nobody reads the port and the pty's
+buffer is full, bytes are lost, as on a real UART. A thread reads what the driver sends
+and hands it to ``on_input`` (commands).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+
+from fakes.pty import VirtualSerialPort
+
+
+class PtyStreamEmulator:
+    name = "stream"
+
+    def __init__(self, name: str, robot: str = "r1") -> None:
+        self.name = name
+        self.robot_name = robot
+        self.port: VirtualSerialPort | None = None
+        self._runner = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.bytes_dropped = 0
+        self.lock = threading.Lock()
+
+    def start(self, runner) -> None:  # noqa: ANN001 (FakeRunner; avoids an import cycle)
+        self._runner = runner
+        self.port = VirtualSerialPort(runner.link_dir / self.name)
+        self._thread = threading.Thread(target=self._serve, name=f"fake-{self.name}", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        if self.port is not None:
+            self.port.close()
+
+    def ports(self) -> dict[str, str]:
+        return {self.name: self.port.path} if self.port else {}
+
+    def send(self, data: bytes) -> None:
+        """Non-blocking write; what does not fit in the pty buffer is lost."""
+        port = self.port
+        fd = port.master if port is not None else None
+        if fd is None:
+            return
+        view = memoryview(data)
+        while view:
+            try:
+                n = os.write(fd, view)
+            except BlockingIOError:
+                self.bytes_dropped += len(view)
+                return
+            except OSError:
+                return
+            view = view[n:]
+
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            port = self.port
+            if port is None:
+                return
+            data = port.read(0.05)
+            if data:
+                with contextlib.suppress(Exception):
+                    self.on_input(data)
+
+    def on_input(self, data: bytes) -> None:
+        """Bytes written by the driver (subclasses parse commands)."""
+
+    def tick(self, dt: float) -> None:
+        """Sample the world (called with the world locked)."""

@@ -1,0 +1,166 @@
+"""``hilnav probe ir|gyro|gps PORT``: the sensor drivers' messages as JSON lines.
+
+PORT is a device path, ``tcp://HOST:PORT`` or a file of recorded bytes; for an IR board on
+CAN it is ``INTERFACE:CHANNEL`` (``slcan:/dev/ttyACM0``, ``socketcan:can0``,
+``virtual:NAME``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import time
+from typing import Any
+
+from drivers.base import DeviceError
+from drivers.cruzcore_driver import CruzCoreDriver
+from drivers.irboard import IrBoardConfig
+from drivers.irboard.driver import IrCanDriver, IrSerialDriver
+from drivers.nmea import Datum
+from drivers.nmea.driver import NmeaDriver
+from hilnav.errors import CliError
+from msgs import GpsFix, GyroSample, IrScan, to_dict
+
+CAN_INTERFACES = ("slcan", "socketcan", "virtual", "pcan", "kvaser", "vector", "gs_usb", "ixxat")
+
+
+def register_sensors(dev: argparse._SubParsersAction) -> None:
+    """Add ``ir``, ``gyro`` and ``gps`` under ``hilnav probe``."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("port", help="device path, tcp://HOST:PORT or a file of recorded bytes")
+    common.add_argument("--seconds", type=float, default=5.0, help="how long (default 5)")
+    common.add_argument("--count", type=int, default=None, help="stop after N messages")
+
+    ir = dev.add_parser("ir", parents=[common], help="an IR ADC board: one object per scan")
+    ir.add_argument("--baud", type=int, default=115200)
+    ir.add_argument("--board", type=int, default=1, help="board id (default 1)")
+    ir.add_argument("--bits", type=int, default=10, choices=(10, 12), help="ADC resolution")
+    ir.add_argument("--vref", type=float, default=5.0, help="ADC reference voltage")
+    ir.add_argument("--channels", type=int, default=6, help="number of sensors (default 6)")
+    ir.add_argument("--rate", type=int, default=20, help="sample rate to request (Hz)")
+    ir.add_argument("--median", type=int, default=1, help="median over N samples")
+    ir.add_argument("--bitrate", type=int, default=500_000, help="CAN bit rate")
+    ir.set_defaults(func=probe_ir)
+
+    gy = dev.add_parser("gyro", parents=[common], help="a CruzCore gyro: one object per packet")
+    gy.add_argument("--baud", type=int, default=115200)
+    gy.add_argument("--rate", type=int, default=None, help="packet rate to request (Hz)")
+    gy.add_argument("--no-reset", action="store_true", help="do not re-zero the angle")
+    gy.set_defaults(func=probe_gyro)
+
+    gp = dev.add_parser("gps", parents=[common], help="an NMEA GPS: one object per fix")
+    gp.add_argument("--baud", type=int, default=9600)
+    gp.add_argument("--datum", metavar="LAT,LON", help="origin of east/north (default first fix)")
+    gp.add_argument(
+        "--no-checksum-ok", action="store_true", help="accept sentences without checksum"
+    )
+    gp.set_defaults(func=probe_gps)
+
+
+def _clean(v: Any) -> Any:
+    if isinstance(v, float):
+        return None if not math.isfinite(v) else round(v, 9)
+    if isinstance(v, (list, tuple)):
+        return [_clean(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _clean(x) for k, x in v.items()}
+    return v
+
+
+def gps_json(f: GpsFix) -> dict[str, Any]:
+    d = to_dict(f)
+    out = {
+        "time": f.time_utc or None,
+        "lat": f.lat_deg,
+        "lon": f.lon_deg,
+        "alt": f.alt_msl_m,
+        "mode": f.mode,
+    }
+    for k, v in d.items():
+        if k not in ("time_utc", "lat_deg", "lon_deg", "alt_msl_m", "mode"):
+            out[k] = v
+    return _clean(out)
+
+
+def _json(m: Any) -> dict[str, Any] | None:
+    if isinstance(m, GpsFix):
+        return gps_json(m)
+    if isinstance(m, (GyroSample, IrScan)):
+        return _clean(to_dict(m))
+    return None
+
+
+def _loop(driver: Any, args: argparse.Namespace) -> int:
+    stop: list[int] = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    try:
+        driver.open()
+    except DeviceError as exc:
+        raise CliError(str(exc)) from None
+    n = 0
+    deadline = time.monotonic() + args.seconds
+    try:
+        while time.monotonic() < deadline and not stop:
+            msgs = driver.read(0.2)
+            for m in msgs:
+                obj = _json(m)
+                if obj is not None:
+                    print(json.dumps(obj), flush=True)
+                    n += 1
+                    if args.count is not None and n >= args.count:
+                        return 0
+            if getattr(driver, "eof", False) and not msgs:
+                break
+    except KeyboardInterrupt:
+        pass
+    finally:
+        driver.close()
+    return 0
+
+
+def probe_ir(args: argparse.Namespace) -> int:
+    from drivers.irboard.convert import PAPER_MOUNTS
+
+    if not 1 <= args.channels <= 8:
+        raise CliError(f"--channels {args.channels}: an IR board has 1 to 8 channels")
+    mounts = PAPER_MOUNTS[: args.channels] + ((0.0, 0.0, 0.0),) * max(0, args.channels - 6)
+    try:
+        cfg = IrBoardConfig(
+            board_id=args.board,
+            adc_bits=args.bits,
+            vref_v=args.vref,
+            rate_hz=args.rate,
+            mounts=mounts,
+            median_window=args.median,
+        )
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    iface, sep, channel = args.port.partition(":")
+    if sep and iface in CAN_INTERFACES:
+        driver: Any = IrCanDriver(iface, channel, cfg, bitrate=args.bitrate)
+    else:
+        driver = IrSerialDriver(args.port, cfg, baud=args.baud)
+    return _loop(driver, args)
+
+
+def probe_gyro(args: argparse.Namespace) -> int:
+    driver = CruzCoreDriver(
+        args.port, baud=args.baud, rate_hz=args.rate, reset_on_open=not args.no_reset
+    )
+    return _loop(driver, args)
+
+
+def probe_gps(args: argparse.Namespace) -> int:
+    datum = None
+    if args.datum:
+        try:
+            lat, lon = (float(x) for x in args.datum.split(","))
+        except ValueError:
+            raise CliError(f"--datum {args.datum!r}: expected LAT,LON in degrees") from None
+        datum = Datum(lat, lon)
+    driver = NmeaDriver(
+        args.port, baud=args.baud, datum=datum, require_checksum=not args.no_checksum_ok
+    )
+    return _loop(driver, args)
