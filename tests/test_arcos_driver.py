@@ -204,6 +204,7 @@ def test_recorded_file_is_decoded_without_handshake(tmp_path, fake):
     replayed = []
     while not f.eof:
         replayed += [m for m in f.read(0.1) if isinstance(m, RobotOdometry)]
+    f.close()
     assert len(replayed) >= 8 and live
 
 
@@ -230,6 +231,7 @@ def test_cli_fake_and_probe_drive():
     finally:
         fake.terminate()
         assert fake.wait(10) == 0
+        fake.stdout.close()
 
 
 def test_cli_probe_bad_port_message():
