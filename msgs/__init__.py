@@ -7,10 +7,12 @@ from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, sche
 from msgs.diagnostics import DeviceDiagnostics
 from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D, wrap_angle
+from msgs.mapping import AssociationReport, OccupancyGridMsg
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
 from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
 
 __all__ = [
+    "AssociationReport",
     "DecodeError",
     "DeviceDiagnostics",
     "GpsFix",
@@ -19,6 +21,7 @@ __all__ = [
     "Interval",
     "IrScan",
     "IrStatus",
+    "OccupancyGridMsg",
     "Pose2D",
     "PoseBox",
     "PoseEstimate",

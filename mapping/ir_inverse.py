@@ -1,0 +1,261 @@
+"""Inverse sensor model of the Sharp IR beams, widened by heading uncertainty.
+
+ir-grid-mapping.txt fig. 4: along a beam that returned a range z, cells nearer than the
+hit are probably free (p_free), cells at the hit (|r - z| <= w) probably occupied
+(p_occupied) and cells behind it are not touched (unknown, p = 0.5). A reading that saw
+nothing (status too_far or no_return) only clears the cells up to the maximum range.
+Readings flagged too_near or invalid carry no usable range and are skipped (counted).
+
+Eq. (6): the robot's heading is uncertain (sigma from the heading Kalman filter, eq.
+1-4), so the beam may point anywhere within +-3 sigma. Every cell j inside that cone is
+updated with its probability pulled towards 0.5:
+
+    p_j = 0.5 - (0.5 - p)^(1 + |alpha / 3 sigma|)   if p < 0.5
+    p_j = 0.5 + (p - 0.5)^(1 + |alpha / 3 sigma|)   if p > 0.5
+
+where alpha is the angle between the beam axis and the direction to the cell. Two
+choices the paper leaves open: the cone is never narrower than the sensor's own beam
+(``min_half_angle_rad``; with sigma -> 0 eq. 6 would update a line of zero width), and
+alpha is measured to the nearest point of the cell (a cell the axis passes through has
+alpha = 0), so that the cells on the axis get the full update at any range.
+
+Everything is vectorised over all beams of a call (one scan, or many scans when data
+is re-inserted): the cone of each beam is covered by a lattice of sample points with
+spacing 0.7 cells (any cell lying inside the cone receives one), the points are binned
+into cells, repeated (beam, cell) pairs are reduced to one, and each cell's update is
+computed from its exact centre geometry.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mapping.grid import OccupancyGrid
+from msgs import IrScan, Pose2D
+
+KIND_SKIP = -1
+KIND_HIT = 0
+KIND_CLEAR = 1
+_STATUS_KIND = {"ok": KIND_HIT, "too_far": KIND_CLEAR, "no_return": KIND_CLEAR}
+
+
+@dataclass(frozen=True)
+class InverseModelConfig:
+    """Parameters of the IR inverse sensor model (fig. 4) and its eq. 6 cone.
+
+    p_free / p_occupied: the model's probabilities before attenuation.
+    hit_halfwidth_m: half thickness of the occupied band about the measured range (at
+        least 0.75 cell is used).
+    max_range_m: the sensor's maximum valid range (Sharp GP2Y0A710K0F: 5.5 m).
+    sigma_multiple: the cone is +- sigma_multiple * sigma (the paper's 3 sigma).
+    min_half_angle_rad: the sensor's own beam half-angle (cone floor).
+    max_half_angle_rad: cone ceiling, so a lost heading does not paint half the map.
+    use_heading_uncertainty: False gives the plain fig. 4 model (cone = own beam).
+    """
+
+    p_free: float = 0.35
+    p_occupied: float = 0.75
+    hit_halfwidth_m: float = 0.075
+    max_range_m: float = 5.5
+    sigma_multiple: float = 3.0
+    min_half_angle_rad: float = math.radians(1.0)
+    max_half_angle_rad: float = math.radians(20.0)
+    use_heading_uncertainty: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.p_free < 0.5:
+            raise ValueError(f"inverse model p_free must be in (0, 0.5), got {self.p_free}")
+        if not 0.5 < self.p_occupied < 1.0:
+            raise ValueError(f"inverse model p_occupied must be in (0.5, 1), got {self.p_occupied}")
+        if self.max_range_m <= 0 or self.hit_halfwidth_m < 0:
+            raise ValueError("inverse model max_range_m must be > 0, hit_halfwidth_m >= 0")
+        if not 0 < self.min_half_angle_rad <= self.max_half_angle_rad < math.pi / 2:
+            raise ValueError(
+                "inverse model needs 0 < min_half_angle_rad <= max_half_angle_rad < pi/2"
+            )
+
+
+def attenuate(p: np.ndarray, alpha: np.ndarray, three_sigma: np.ndarray) -> np.ndarray:
+    """Eq. (6): pull p towards 0.5 with the exponent 1 + |alpha / (3 sigma)|."""
+    p = np.asarray(p, dtype=float)
+    e = 1.0 + np.abs(np.asarray(alpha, dtype=float) / np.asarray(three_sigma, dtype=float))
+    d = np.abs(p - 0.5) ** e
+    return np.where(p < 0.5, 0.5 - d, np.where(p > 0.5, 0.5 + d, p))
+
+
+@dataclass
+class Beams:
+    """Beams in the world frame: origin (x, y), direction, range, kind, heading sigma."""
+
+    x: np.ndarray
+    y: np.ndarray
+    angle: np.ndarray
+    range_m: np.ndarray
+    kind: np.ndarray
+    sigma_rad: np.ndarray
+    skipped: int = 0
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+    @staticmethod
+    def concat(parts: list[Beams]) -> Beams:
+        if not parts:
+            z = np.zeros(0)
+            return Beams(z, z, z, z, np.zeros(0, dtype=np.int8), z)
+        return Beams(
+            *(
+                np.concatenate([getattr(b, n) for b in parts])
+                for n in ("x", "y", "angle", "range_m", "kind", "sigma_rad")
+            ),  # fmt: skip
+            skipped=sum(b.skipped for b in parts),
+        )
+
+
+def scan_kinds(scan: IrScan) -> tuple[np.ndarray, np.ndarray]:
+    """(ranges, kinds) of an IrScan: ok -> hit, too_far/no_return -> clear, else skip."""
+    n = len(scan.status)
+    if len(scan.ranges_m) != n:
+        raise ValueError(
+            f"IrScan has {len(scan.ranges_m)} ranges but {n} status flags (board {scan.board_id})"
+        )
+    kinds = np.array([_STATUS_KIND.get(s, KIND_SKIP) for s in scan.status], dtype=np.int8)
+    ranges = np.asarray(scan.ranges_m, dtype=float)
+    bad = (kinds == KIND_HIT) & ~(np.isfinite(ranges) & (ranges > 0))
+    kinds[bad] = KIND_SKIP
+    return ranges, kinds
+
+
+def beams_from_scan(pose: Pose2D, sigma_rad: float, scan: IrScan, mounts: np.ndarray) -> Beams:
+    """World-frame beams of one scan taken at ``pose``; mounts (K, 3) = x, y, yaw on the robot."""
+    mounts = np.atleast_2d(np.asarray(mounts, dtype=float))
+    ranges, kinds = scan_kinds(scan)
+    if mounts.shape != (len(kinds), 3):
+        raise ValueError(
+            f"IR mounts have shape {mounts.shape} but the scan has {len(kinds)} channels: "
+            "give one (x, y, yaw) mount per channel in the robot's ir mounts config"
+        )
+    c, s = math.cos(pose.theta), math.sin(pose.theta)
+    x = pose.x + c * mounts[:, 0] - s * mounts[:, 1]
+    y = pose.y + s * mounts[:, 0] + c * mounts[:, 1]
+    keep = kinds != KIND_SKIP
+    sig = float(sigma_rad) if math.isfinite(sigma_rad) and sigma_rad >= 0 else 0.0
+    return Beams(
+        x[keep],
+        y[keep],
+        (pose.theta + mounts[:, 2])[keep],
+        np.where(kinds == KIND_HIT, ranges, np.nan)[keep],
+        kinds[keep],
+        np.full(int(keep.sum()), sig),
+        skipped=int((~keep).sum()),
+    )
+
+
+@dataclass
+class IrInverseModel:
+    """Computes the cells and log-odds increments of a batch of beams (fig. 4 + eq. 6)."""
+
+    config: InverseModelConfig = field(default_factory=InverseModelConfig)
+    max_samples_per_call: int = 2_000_000
+
+    def half_angles(self, sigma_rad: np.ndarray) -> np.ndarray:
+        c = self.config
+        if not c.use_heading_uncertainty:
+            return np.full(np.shape(sigma_rad), c.min_half_angle_rad)
+        return np.clip(c.sigma_multiple * np.asarray(sigma_rad, dtype=float),
+                       c.min_half_angle_rad, c.max_half_angle_rad)  # fmt: skip
+
+    def reach(self, beams: Beams, res: float) -> np.ndarray:
+        w = max(self.config.hit_halfwidth_m, 0.75 * res)
+        hit = beams.kind == KIND_HIT
+        r = np.where(hit, np.nan_to_num(beams.range_m, nan=0.0) + w, self.config.max_range_m)
+        return np.minimum(r, self.config.max_range_m + w)
+
+    def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
+        """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit."""
+        if len(beams) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        res = grid.resolution
+        h = self.half_angles(beams.sigma_rad)
+        reach = self.reach(beams, res)
+        # Grow the grid to hold every cone.
+        ext = reach + res
+        grid.ensure(
+            float(np.min(beams.x - ext)),
+            float(np.min(beams.y - ext)),
+            float(np.max(beams.x + ext)),
+            float(np.max(beams.y + ext)),
+        )
+        spacing = 0.7 * res
+        k_n = np.ceil(reach / spacing).astype(np.int64)
+        j_n = np.ceil(reach * np.tan(h) / spacing).astype(np.int64) + 1
+        per = k_n * (2 * j_n + 1)
+        # Split large batches to bound memory.
+        if per.sum() > self.max_samples_per_call and len(beams) > 1:
+            idx_parts, dl_parts = [], []
+            csum = np.cumsum(per)
+            start = 0
+            while start < len(beams):
+                stop = int(
+                    np.searchsorted(csum, csum[start] - per[start] + self.max_samples_per_call)
+                )
+                stop = max(stop, start + 1)
+                sub = Beams(*(getattr(beams, n)[start:stop] for n in
+                              ("x", "y", "angle", "range_m", "kind", "sigma_rad")))  # fmt: skip
+                i, d = self.updates(grid, sub)
+                idx_parts.append(i)
+                dl_parts.append(d)
+                start = stop
+            return np.concatenate(idx_parts), np.concatenate(dl_parts)
+        total = int(per.sum())
+        beam_id = np.repeat(np.arange(len(beams)), per)
+        offsets = np.concatenate([[0], np.cumsum(per)[:-1]])
+        q = np.arange(total) - offsets[beam_id]
+        width = 2 * j_n[beam_id] + 1
+        k = q // width
+        j = q % width - j_n[beam_id]
+        t = (k + 0.5) * spacing
+        lat = j * spacing
+        keep = np.abs(lat) <= t * np.tan(h[beam_id]) + res
+        beam_id, t, lat = beam_id[keep], t[keep], lat[keep]
+        ca, sa = np.cos(beams.angle), np.sin(beams.angle)
+        px = beams.x[beam_id] + t * ca[beam_id] - lat * sa[beam_id]
+        py = beams.y[beam_id] + t * sa[beam_id] + lat * ca[beam_id]
+        row, col = grid.cell_of(px, py)
+        rows, cols = grid.shape
+        ncell = rows * cols
+        key = np.unique(beam_id.astype(np.int64) * ncell + row * cols + col)
+        b = key // ncell
+        flat = key % ncell
+        row, col = flat // cols, flat % cols
+        cx, cy = grid.centre_of(row, col)
+        vx, vy = cx - beams.x[b], cy - beams.y[b]
+        r = np.hypot(vx, vy)
+        alpha = np.abs(np.angle(np.exp(1j * (np.arctan2(vy, vx) - beams.angle[b]))))
+        cell_radius = 0.7072 * res
+        alpha_eff = np.maximum(
+            0.0, alpha - np.arcsin(np.minimum(1.0, cell_radius / np.maximum(r, 1e-9)))
+        )
+        alpha_eff = np.where(r <= cell_radius, 0.0, alpha_eff)
+        hb = h[b]
+        c = self.config
+        w = max(c.hit_halfwidth_m, 0.75 * res)
+        z = beams.range_m[b]
+        hit = beams.kind[b] == KIND_HIT
+        p = np.full(r.shape, 0.5)
+        with np.errstate(invalid="ignore"):
+            p = np.where(hit & (r < z - w), c.p_free, p)
+            p = np.where(hit & (np.abs(r - z) <= w), c.p_occupied, p)
+        p = np.where(~hit & (r <= c.max_range_m), c.p_free, p)
+        sel = (alpha_eff <= hb) & (p != 0.5)
+        p = attenuate(p[sel], alpha_eff[sel], hb[sel])
+        dl = np.log(p) - np.log1p(-p)
+        return flat[sel], dl
+
+    def integrate(self, grid: OccupancyGrid, beams: Beams) -> int:
+        """Apply the beams to the grid; returns the number of cell updates."""
+        idx, dl = self.updates(grid, beams)
+        return grid.add(idx, dl)
