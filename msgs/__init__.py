@@ -7,6 +7,7 @@ from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, sche
 from msgs.diagnostics import DeviceDiagnostics
 from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D, wrap_angle
+from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
 from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
@@ -16,6 +17,7 @@ __all__ = [
     "DecodeError",
     "DeviceDiagnostics",
     "GpsFix",
+    "GroundTruth",
     "GyroSample",
     "HeadingEstimate",
     "Interval",
@@ -25,6 +27,7 @@ __all__ = [
     "Pose2D",
     "PoseBox",
     "PoseEstimate",
+    "RawBytes",
     "RobotInfo",
     "RobotOdometry",
     "VelocityCommand",
