@@ -9,6 +9,7 @@ from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D, wrap_angle
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
+from msgs.relative import RelativeMeasurement
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
 from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
 
@@ -28,6 +29,7 @@ __all__ = [
     "PoseBox",
     "PoseEstimate",
     "RawBytes",
+    "RelativeMeasurement",
     "RobotInfo",
     "RobotOdometry",
     "VelocityCommand",
