@@ -221,10 +221,13 @@ class CPLocalizer:
         once). Contracts the latest state; returns False (and changes nothing) if the
         measurements are inconsistent with it."""
         x, y, th = self._latest()
-        age = self.cfg.speed_bound_mps * self._age_s(stamp_ns)
+        # A measurement off the state's stamp: the own motion and turn since are bounded.
+        age_s = self._age_s(stamp_ns)
+        grow = self.cfg.speed_bound_mps * age_s  # own motion between state and measurement
+        beta = beta.inflate(self.cfg.yaw_rate_bound_radps * age_s)
         (xi, yi, thi, *_), _ = fixpoint(
             contract_range_bearing,
-            [x, y, th, peer_x.inflate(age), peer_y.inflate(age), rho, beta],
+            [x, y, th, peer_x.inflate(grow), peer_y.inflate(grow), rho, beta],
             tol=self.cfg.tol,
             max_iter=4,
         )
@@ -413,22 +416,42 @@ class CPLocalizer:
         self.peers.pop(robot, None)
 
     def feed_relative(self, m: RelativeMeasurement) -> PoseBox | None:
+        return self.feed_relatives([m])
+
+    def feed_relatives(self, ms: list[RelativeMeasurement]) -> PoseBox | None:
+        """Range-bearing measurements to several peers at once (vectorised), each used
+        with that peer's latest box widened by ``speed_bound * |stamp difference|``."""
         if not self.started:
             self._skip("relative_before_start")
             return None
-        peer = self.peers.get(m.target)
-        if peer is None or peer.x.empty or peer.y.empty:
-            self._skip("relative_no_peer_box")
+        use = []
+        for m in ms:
+            peer = self.peers.get(m.target)
+            if peer is None or peer.x.empty or peer.y.empty:
+                self._skip("relative_no_peer_box")
+                continue
+            vals = (m.range_m, m.bearing_rad, m.range_bound_m, m.bearing_bound_rad)
+            if (
+                not all(math.isfinite(v) for v in vals)
+                or m.range_bound_m < 0
+                or m.bearing_bound_rad < 0
+            ):
+                self._skip("relative_invalid")
+                continue
+            use.append((m, peer))
+        if not use:
             return None
-        dt = abs(m.stamp_ns - peer.stamp_ns) * 1e-9
-        grow = self.cfg.speed_bound_mps * dt
-        ok = self.relative(
-            m.stamp_ns,
-            _iv(peer.x).inflate(grow),
-            _iv(peer.y).inflate(grow),
-            IV.around(m.range_m, m.range_bound_m),
-            IV.around(m.bearing_rad, m.bearing_bound_rad),
-        )
+        c, now = self.cfg, self._w.stamps[-1]
+        # Peer box -> measurement time (peer's motion), measurement -> state time (own).
+        dt_peer = np.array([abs(m.stamp_ns - p.stamp_ns) * 1e-9 for m, p in use])
+        dt_own = np.array([abs(m.stamp_ns - now) * 1e-9 for m, _ in use])
+        grow = c.speed_bound_mps * (dt_peer + dt_own)
+        px = IV.of([p.x.lo for _, p in use], [p.x.hi for _, p in use]).inflate(grow)
+        py = IV.of([p.y.lo for _, p in use], [p.y.hi for _, p in use]).inflate(grow)
+        rho = IV.around([m.range_m for m, _ in use], [m.range_bound_m for m, _ in use])
+        beta = IV.around([m.bearing_rad for m, _ in use], [m.bearing_bound_rad for m, _ in use])
+        beta = beta.inflate(c.yaw_rate_bound_radps * dt_own)
+        ok = self.relative(now, px, py, rho, beta)
         return self.box() if ok else None
 
     def feed(self, msg) -> PoseBox | None:
