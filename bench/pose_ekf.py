@@ -85,7 +85,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    runs = [simulate(args.seed * 1000 + i, length) for i, length in enumerate(run_lengths(args.runs))]
+    runs = [
+        simulate(args.seed * 1000 + i, length) for i, length in enumerate(run_lengths(args.runs))
+    ]
     t_sim = time.perf_counter() - t0
     params = PoseEkfParams()
     out: dict[str, dict] = {}

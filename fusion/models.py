@@ -18,7 +18,9 @@ with a = theta + c dtheta,
 
 Wheel noise: each wheel's displacement error is white with variance k^2 |d| + floor^2
 (slip and tread deformation grow with the distance rolled; Chong & Kleeman's
-non-systematic odometry model), independent between wheels.
+non-systematic odometry model), independent between wheels. Turning adds the error of the
+effective wheel base (tyre scrub, floor): variance (beta dtheta)^2 on dtheta, the beta
+term of ir-grid-mapping eq. (4).
 
 Measurements: GPS position of an antenna mounted at (ax, ay) on the robot,
     h = [x + ax cos theta - ay sin theta, y + ax sin theta + ay cos theta],
@@ -59,11 +61,19 @@ def wheel_covariance(dl: float, dr: float, k_m_per_sqrt_m: float, floor_m: float
 
 
 def step_covariance(
-    dl: float, dr: float, wheelbase_m: float, k_m_per_sqrt_m: float, floor_m: float
+    dl: float,
+    dr: float,
+    wheelbase_m: float,
+    k_m_per_sqrt_m: float,
+    floor_m: float,
+    turn_fraction: float = 0.0,
 ) -> np.ndarray:
-    """2x2 covariance of (ds, dtheta) propagated from the wheels: J Q J^T."""
+    """2x2 covariance of (ds, dtheta): J Q_wheels J^T, plus (beta dtheta)^2 on dtheta."""
     j = wheels_jacobian(wheelbase_m)
-    return j @ wheel_covariance(dl, dr, k_m_per_sqrt_m, floor_m) @ j.T
+    q = j @ wheel_covariance(dl, dr, k_m_per_sqrt_m, floor_m) @ j.T
+    if turn_fraction:
+        q[1, 1] += (turn_fraction * (dr - dl) / wheelbase_m) ** 2
+    return q
 
 
 def motion(state: np.ndarray, u: np.ndarray, c: float = 0.5) -> np.ndarray:

@@ -3,7 +3,8 @@
 Prediction (eq. 2-4) on every odometry step: the wheel displacements (dl, dr) — recovered
 from the robot's odometry pose deltas with the configured wheel base, fusion.models — with
 independent wheel noise k^2 |d| + floor^2, give the step u = (ds, dtheta) and its
-covariance Q_u = J Q_wheels J^T (eq. 1). If the gyro reported over the same interval, its
+covariance Q_u = J Q_wheels J^T (eq. 1), plus (beta dtheta)^2 on dtheta for the wheel
+base's uncertainty while turning (beta = 0.1, as ir-grid-mapping eq. 4 found). If the gyro reported over the same interval, its
 heading change dtheta_g (bias learnt at rest removed; variance (gamma dtheta_g)^2 +
 arw^2 dt + (bias_sigma dt)^2) is a second measurement of dtheta: it is fused into u
 first (Kalman update of the input: innovation dtheta_g - dtheta, S = Q_u[1,1] + R_g),
@@ -77,6 +78,7 @@ class PoseEkfParams:
     wheelbase_m: float = 0.33
     wheel_noise_m_per_sqrt_m: float = 0.005
     wheel_noise_floor_m: float = 1e-4
+    turn_noise_fraction: float = 0.1
     heading_point: float = 0.5
     gyro_gamma: float = 0.02
     gyro_arw_rad_per_sqrt_s: float = 0.015 * DEG
@@ -104,7 +106,8 @@ class PoseEkfParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"PoseEkfParams.{name} must be finite and > 0, got {v!r}")
-        for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "gyro_gamma",
+        for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "turn_noise_fraction",
+                     "gyro_gamma",
                      "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps", "gps_min_sigma_m",
                      "gps_max_lag_s", "initial_sigma_xy_m", "initial_sigma_theta_rad",
                      "bias_window_s", "bias_min_rest_s"):  # fmt: skip
@@ -266,7 +269,12 @@ class PoseEkf:
             return None
         u = models.wheels_to_step(dl, dr, p.wheelbase_m)
         qu = models.step_covariance(
-            dl, dr, p.wheelbase_m, p.wheel_noise_m_per_sqrt_m, p.wheel_noise_floor_m
+            dl,
+            dr,
+            p.wheelbase_m,
+            p.wheel_noise_m_per_sqrt_m,
+            p.wheel_noise_floor_m,
+            p.turn_noise_fraction,
         )
         result = None
         if dtheta_gyro is not None and math.isfinite(dtheta_gyro):
