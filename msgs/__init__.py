@@ -7,6 +7,7 @@ from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, sche
 from msgs.diagnostics import DeviceDiagnostics
 from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D, wrap_angle
+from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
@@ -23,6 +24,8 @@ __all__ = [
     "Interval",
     "IrScan",
     "IrStatus",
+    "LandmarkMap",
+    "LandmarkScan",
     "OccupancyGridMsg",
     "Pose2D",
     "PoseBox",
@@ -30,6 +33,7 @@ __all__ = [
     "RawBytes",
     "RobotInfo",
     "RobotOdometry",
+    "VehicleControl",
     "VelocityCommand",
     "decode",
     "encode",
