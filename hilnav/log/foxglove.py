@@ -13,7 +13,7 @@ native message into zero or more such views, each ``(topic, schema_name, dict)``
 | ``odometry`` (RobotOdometry)| foxglove.FrameTransform odom->base_link | ``/tf`` |
 | ``gps`` (GpsFix with lat/lon)| foxglove.LocationFix       | ``/<robot>/fox/gps`` |
 | ``pose_box`` (PoseBox)      | foxglove.SceneUpdate: a cube and two heading arrows | ``/<robot>/fox/pose_box`` |
-| landmarks (any message with ``landmarks``) | foxglove.SceneUpdate: spheres | ``/<robot>/fox/<topic>`` |
+| landmarks (LandmarkMap: ``xs``/``ys``) | foxglove.SceneUpdate: spheres (3-sigma size) | ``/<robot>/fox/<topic>`` |
 
 The map (``msgs.OccupancyGridMsg``) already *is* a ``foxglove.Grid`` and needs no view.
 map->odom needs the latest odometry pose: :class:`ViewState` keeps it (pure, no clock).
@@ -314,7 +314,23 @@ def landmark_scene(stamp_ns: int, frame: str, ident: str, points: list[tuple]) -
 
 
 def _landmark_points(msg: Any) -> list[tuple] | None:
-    """(x, y[, size]) of a message carrying ``landmarks`` in the map frame, if it has them."""
+    """(x, y, size) per landmark of a map-frame landmark message, else None.
+
+    Understood: ``xs``/``ys`` tuples (msgs.landmarks.LandmarkMap; the sphere's size is the
+    3-sigma extent of ``cov_xx``/``cov_yy`` when present), or ``landmarks`` items with
+    ``x``/``y`` (or ``x_m``/``y_m``).
+    """
+    xs, ys = getattr(msg, "xs", None), getattr(msg, "ys", None)
+    if isinstance(xs, tuple | list) and isinstance(ys, tuple | list) and len(xs) == len(ys):
+        cxx = getattr(msg, "cov_xx", ()) or ()
+        cyy = getattr(msg, "cov_yy", ()) or ()
+        pts = []
+        for i, (x, y) in enumerate(zip(xs, ys, strict=True)):
+            size = None
+            if i < len(cxx) and i < len(cyy):
+                size = 6.0 * math.sqrt(max(float(cxx[i]), float(cyy[i]), 0.0))
+            pts.append((float(x), float(y), max(size, 0.2) if size is not None else None))
+        return pts
     lms = getattr(msg, "landmarks", None)
     if not isinstance(lms, tuple | list):
         return None
@@ -325,8 +341,7 @@ def _landmark_points(msg: Any) -> list[tuple] | None:
             x, y = getattr(lm, "x_m", None), getattr(lm, "y_m", None)
         if not isinstance(x, int | float) or not isinstance(y, int | float):
             return None  # landmarks not in map coordinates (e.g. range/bearing): no view
-        size = getattr(lm, "diameter_m", None)
-        pts.append((x, y, size))
+        pts.append((x, y, getattr(lm, "diameter_m", None)))
     return pts
 
 

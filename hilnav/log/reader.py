@@ -268,6 +268,31 @@ def iter_raw(
         stats.errors.extend(res.errors)
 
 
+def decode_record(
+    r: RawRecord, stats: ReadStats, types: dict[str, type] | None = None
+) -> LoggedMessage | None:
+    """Decode one raw record to its msgs dataclass, or count why not and return None."""
+    types = types if types is not None else message_types()
+    stats.messages += 1
+    if is_view(r.schema_name):
+        stats.views += 1
+        return None
+    cls = types.get(r.schema_name)
+    if cls is None or r.message_encoding != "json":
+        stats.unknown += 1
+        stats.unknown_schemas[r.schema_name or "(none)"] += 1
+        return None
+    try:
+        msg = msgs.decode(cls, r.data)
+    except (msgs.DecodeError, TypeError, ValueError) as exc:
+        stats.malformed += 1
+        if len(stats.errors) < 100:
+            stats.errors.append(f"{r.topic} @ {r.log_time_ns}: {exc}")
+        return None
+    stats.decoded += 1
+    return LoggedMessage(r.topic, msg, r.log_time_ns, r.publish_time_ns, r.schema_name)
+
+
 def read_messages(
     path: str | Path, topics: Iterable[str] | None = None, stats: ReadStats | None = None
 ) -> Iterator[LoggedMessage]:
@@ -276,24 +301,9 @@ def read_messages(
     st = stats if stats is not None else ReadStats()
     types = message_types()
     for r in iter_raw(path, topics, st):
-        st.messages += 1
-        if is_view(r.schema_name):
-            st.views += 1
-            continue
-        cls = types.get(r.schema_name)
-        if cls is None or r.message_encoding != "json":
-            st.unknown += 1
-            st.unknown_schemas[r.schema_name or "(none)"] += 1
-            continue
-        try:
-            msg = msgs.decode(cls, r.data)
-        except (msgs.DecodeError, TypeError, ValueError) as exc:
-            st.malformed += 1
-            if len(st.errors) < 100:
-                st.errors.append(f"{r.topic} @ {r.log_time_ns}: {exc}")
-            continue
-        st.decoded += 1
-        yield LoggedMessage(r.topic, msg, r.log_time_ns, r.publish_time_ns, r.schema_name)
+        m = decode_record(r, st, types)
+        if m is not None:
+            yield m
 
 
 def read_metadata(path: str | Path) -> dict[str, dict[str, str]]:
