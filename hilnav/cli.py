@@ -19,6 +19,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.probe",
     "hilnav.commands.demo",
     "hilnav.commands.log",
+    "hilnav.commands.analyze",
 )
 
 
