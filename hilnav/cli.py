@@ -20,6 +20,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.demo",
     "hilnav.commands.log",
     "hilnav.commands.analyze",
+    "hilnav.commands.replay",
 )
 
 

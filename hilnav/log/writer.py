@@ -80,8 +80,8 @@ class LogWriter:
             self._stream, chunk_size=chunk_size, compression=COMPRESSIONS[compression]
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
-        self._schemas: dict[str, int] = {}
-        self._channels: dict[tuple[str, str], int] = {}
+        self._schemas: dict[tuple[str, str, bytes], int] = {}
+        self._channels: dict[tuple[str, str, str], int] = {}
         self._seq: dict[int, int] = {}
         self._pending = 0  # messages in the open chunk
         self._chunk_first_ns: int | None = None
@@ -111,22 +111,35 @@ class LogWriter:
         self.close()
 
     # -- registration ------------------------------------------------------------------
-    def _schema_id(self, name: str, schema: dict[str, Any] | None) -> int:
-        sid = self._schemas.get(name)
+    def _schema_id(self, name: str, encoding: str, data: bytes) -> int:
+        key = (name, encoding, data)
+        sid = self._schemas.get(key)
         if sid is None:
-            data = _dumps(schema) if schema is not None else b""
-            sid = self._writer.register_schema(
-                name=name, encoding="jsonschema" if schema is not None else "", data=data
-            )
-            self._schemas[name] = sid
+            sid = self._writer.register_schema(name=name, encoding=encoding, data=data)
+            self._schemas[key] = sid
         return sid
 
-    def _channel_id(self, topic: str, schema_name: str, schema: dict[str, Any] | None) -> int:
-        key = (topic, schema_name)
+    def _channel_id(
+        self,
+        topic: str,
+        schema_name: str,
+        schema: dict[str, Any] | bytes | None,
+        schema_encoding: str = "jsonschema",
+        message_encoding: str = "json",
+    ) -> int:
+        key = (topic, schema_name, message_encoding)
         cid = self._channels.get(key)
         if cid is None:
-            sid = self._schema_id(schema_name, schema)
-            cid = self._writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+            if isinstance(schema, dict):
+                data, enc = _dumps(schema), schema_encoding
+            elif isinstance(schema, bytes | bytearray) and schema:
+                data, enc = bytes(schema), schema_encoding
+            else:
+                data, enc = b"", ""
+            sid = self._schema_id(schema_name, enc, data)
+            cid = self._writer.register_channel(
+                topic=topic, message_encoding=message_encoding, schema_id=sid
+            )
             self._channels[key] = cid
             self._seq[cid] = 0
         return cid
@@ -158,28 +171,38 @@ class LogWriter:
         pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
         with self._lock:
             self._check_open()
-            cid = self._channel_id(topic, name, msgs.json_schema(cls))
+            cid = self._channels.get((topic, name, "json"))
+            if cid is None:
+                cid = self._channel_id(topic, name, msgs.json_schema(cls))
             self._add(cid, data, log_ns, pub_ns)
             if self._views:
                 for vtopic, vschema, body in foxglove.views(topic, msg, self._view_state):
-                    vcid = self._channel_id(vtopic, vschema, foxglove.SCHEMAS.get(vschema))
+                    vcid = self._channels.get((vtopic, vschema, "json"))
+                    if vcid is None:
+                        vcid = self._channel_id(vtopic, vschema, foxglove.SCHEMAS.get(vschema))
                     self._add(vcid, _dumps(body), log_ns, pub_ns)
 
     def write_encoded(
         self,
         topic: str,
         schema_name: str,
-        schema: dict[str, Any] | None,
+        schema: dict[str, Any] | bytes | None,
         data: bytes,
         log_time_ns: int,
         publish_time_ns: int | None = None,
+        *,
+        schema_encoding: str = "jsonschema",
+        message_encoding: str = "json",
     ) -> None:
-        """Log an already encoded JSON payload (pass-through of records we do not decode)."""
+        """Log an already encoded payload (pass-through of records we do not decode).
+
+        ``schema`` is a JSON Schema (dict), the schema record's bytes (with
+        ``schema_encoding``), or None for a schema-less channel."""
         log_ns = int(log_time_ns)
         pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
         with self._lock:
             self._check_open()
-            cid = self._channel_id(topic, schema_name, schema)
+            cid = self._channel_id(topic, schema_name, schema, schema_encoding, message_encoding)
             self._add(cid, bytes(data), log_ns, pub_ns)
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
