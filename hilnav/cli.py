@@ -21,6 +21,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.log",
     "hilnav.commands.analyze",
     "hilnav.commands.replay",
+    "hilnav.commands.importer",
 )
 
 

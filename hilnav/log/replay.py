@@ -1,6 +1,7 @@
 """``hilnav replay``: feed a log's device messages through the services again, deterministically.
 
-The recorded device messages of the log's robot (odometry, gyro, gps, ir; or, with
+The recorded device messages of the log's robot (odometry, gyro, gps, ir, and the
+imported data sets' control and landmark_scan; or, with
 ``from_raw``, the raw device bytes decoded again by the drivers' codecs) go, in log-time
 order, through ``hilnav.pipeline.Pipeline(config).feed(topic, msg)`` — the very class the
 daemon runs. The new log holds:
@@ -48,7 +49,7 @@ DEVICE_TOPICS: dict[type, str] = {
     IrScan: "ir",
     RobotInfo: "info",
 }
-INPUT_TOPICS = ("odometry", "gyro", "gps", "ir")
+INPUT_TOPICS = ("odometry", "gyro", "gps", "ir", "control", "landmark_scan")
 # What the services produce: dropped from the input, produced again by the pipeline.
 OUTPUT_TOPICS = frozenset(
     {"heading", "pose", "pose_box", "map", "association", "landmarks", "slam_pose"}
