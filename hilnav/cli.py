@@ -18,6 +18,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.fake",
     "hilnav.commands.probe",
     "hilnav.commands.demo",
+    "hilnav.commands.config",
 )
 
 
