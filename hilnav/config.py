@@ -279,6 +279,7 @@ class RobotConfig:
         metadata=_check(lambda v: all(map(_name_ok, v)), "names of letters, digits, - or _"),
     )
     diagnostics_period_s: float = field(default=1.0, metadata=_positive("1.0"))
+    initial_pose: tuple[float, float, float] = (1.5, 1.5, 0.0)  # x m, y m, yaw deg in "map"
     devices: Devices = field(default_factory=Devices)
     geometry: Geometry = field(default_factory=Geometry)
     noise: Noise = field(default_factory=Noise)
