@@ -29,6 +29,7 @@ import zenoh
 
 import msgs
 from msgs import (
+    AssociationReport,
     DeviceDiagnostics,
     GpsFix,
     GroundTruth,
@@ -60,6 +61,7 @@ TOPIC_TYPES: dict[str, type] = {
     "diagnostics": DeviceDiagnostics,
     "truth": GroundTruth,
     "info": RobotInfo,
+    "association": AssociationReport,
 }
 
 # What the queryables hilnav/<robot>/query/<name> answer with.

@@ -19,6 +19,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.probe",
     "hilnav.commands.demo",
     "hilnav.commands.config",
+    "hilnav.commands.run",
 )
 
 
