@@ -7,6 +7,7 @@ from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, sche
 from msgs.diagnostics import DeviceDiagnostics
 from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D, wrap_angle
+from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
 from msgs.relative import RelativeMeasurement
@@ -24,6 +25,8 @@ __all__ = [
     "Interval",
     "IrScan",
     "IrStatus",
+    "LandmarkMap",
+    "LandmarkScan",
     "OccupancyGridMsg",
     "Pose2D",
     "PoseBox",
@@ -32,6 +35,7 @@ __all__ = [
     "RelativeMeasurement",
     "RobotInfo",
     "RobotOdometry",
+    "VehicleControl",
     "VelocityCommand",
     "decode",
     "encode",
