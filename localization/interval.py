@@ -100,7 +100,10 @@ class IV:
         return np.where(self.is_empty(), 0.0, up(self.hi - self.lo))
 
     def mid(self) -> np.ndarray:
-        return 0.5 * self.lo + 0.5 * self.hi
+        """Midpoint (0 for the entire line and for empties)."""
+        with np.errstate(invalid="ignore"):
+            m = 0.5 * self.lo + 0.5 * self.hi
+        return np.where(np.isnan(m), 0.0, m)
 
     def mag(self) -> np.ndarray:
         """max |x| over the interval."""

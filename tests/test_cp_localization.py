@@ -207,3 +207,32 @@ def test_message_level_api():
     cp.drop_peer("r2")
     assert "r2" not in cp.peers
     assert cp.feed("garbage") is None and cp.skipped["unhandled_str"] == 1
+
+
+def test_pipeline_adapter_throttles_and_takes_peer_boxes():
+    from localization.service import CPService
+
+    sc = simulate(duration_s=2.0, seed=10)
+    svc = CPService(_cfg(sc, window=10), robot="r1", publish_every_s=0.5)
+    outs = []
+    for s, odo in enumerate(_odometry_msgs(sc, 0)):
+        outs += svc.feed("odometry", odo)
+        outs += svc.feed("gyro", GyroSample(odo.stamp_ns, 0.0, float(sc.gyro[0, s])))
+        outs += svc.feed(
+            "gps",
+            GpsFix(
+                odo.stamp_ns, mode=3, east_m=float(sc.gps[0, s, 0]), north_m=float(sc.gps[0, s, 1])
+            ),
+        )
+        outs += svc.feed("ir", object())  # not ours: ignored
+    stamps = [m.stamp_ns for t, m in outs]
+    assert all(t == "pose_box" for t, _ in outs)
+    assert len(outs) == 5 and all(
+        b - a >= 500_000_000 for a, b in zip(stamps, stamps[1:], strict=False)
+    )
+    peer = PoseBox(1, "r2", Interval(0, 1), Interval(0, 1), Interval(0, 1))
+    assert svc.feed_other("r2", "pose_box", peer) == [] and svc.cp.peers["r2"] is peer
+    svc.feed_other("r9", "pose_box", peer)  # claims another robot: ignored
+    assert "r9" not in svc.cp.peers
+    svc.drop_peer("r2")
+    assert not svc.cp.peers
