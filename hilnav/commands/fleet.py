@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -78,8 +79,6 @@ def _env() -> dict[str, str]:
 
 
 def _read_line(proc: subprocess.Popen, timeout_s: float) -> str | None:
-    import select
-
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         r, _, _ = select.select([proc.stdout], [], [], 0.2)
@@ -145,14 +144,35 @@ def run(args: argparse.Namespace) -> int:
         print(f"fleet: {len(names)} robots on ports {ports}, logs in {out}", flush=True)
         deadline = t0 + wall + 30.0 + 0.05 * args.duration * len(names)
         pending = sorted(kills, key=lambda k: k[1])
-        while time.time() < deadline and any(p.poll() is None for p in procs.values()):
+        done: set[str] = set()
+        while time.time() < deadline:
+            running = {n: p for n, p in procs.items() if p.poll() is None and n not in done}
+            if not running:
+                break
             now = time.time() - t0
             while pending and now >= pending[0][1]:
                 victim, _ = pending.pop(0)
                 if procs[victim].poll() is None:
                     procs[victim].send_signal(signal.SIGKILL)
                     print(f"fleet: killed {victim} at {now:.1f} s", flush=True)
-            time.sleep(0.05)
+            ready, _, _ = select.select([p.stdout for p in running.values()], [], [], 0.05)
+            for n, p in running.items():
+                if p.stdout in ready:
+                    line = p.stdout.readline().decode().strip()
+                    if line == f"DONE {n}" or not line:
+                        done.add(n)
+        for p in procs.values():  # everyone finished (or died): let them close
+            if p.poll() is None:
+                try:
+                    p.stdin.write(b"STOP\n")
+                    p.stdin.flush()
+                except OSError:
+                    pass
+        for p in procs.values():
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
     finally:
         for p in procs.values():
             if p.poll() is None:

@@ -20,8 +20,9 @@ Run by the fleet command as ``python -m hilnav.fleet.robot --index I ...``. The 
   writes its figures as JSON (``<out>/<robot>.json``).
 
 Protocol with the parent on stdio: the child prints ``READY <robot>`` once its bus is
-open, then waits (bounded) for ``GO <t0_wall>`` on stdin. It exits on its own if the
-parent goes away.
+open, waits (bounded) for ``GO <t0_wall>`` on stdin, runs, prints ``DONE <robot>`` and
+keeps its liveliness token until ``STOP`` (bounded), so a robot that finishes first is
+not taken for a lost one. It exits on its own if the parent goes away.
 """
 
 from __future__ import annotations
@@ -97,7 +98,8 @@ class _Inbox:
         return b, a
 
 
-def _wait_go(timeout_s: float) -> float | None:
+def _wait_line(word: str, timeout_s: float) -> list[str] | None:
+    """The first stdin line starting with ``word`` (split), or None on EOF/timeout."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         r, _, _ = select.select([sys.stdin], [], [], 0.5)
@@ -106,9 +108,16 @@ def _wait_go(timeout_s: float) -> float | None:
             if not line:
                 return None
             parts = line.split()
-            if len(parts) == 2 and parts[0] == "GO":
-                return float(parts[1])
+            if parts and parts[0] == word:
+                return parts
     return None
+
+
+def _wait_go(timeout_s: float) -> float | None:
+    parts = _wait_line("GO", timeout_s)
+    if parts is None or len(parts) != 2:
+        return None
+    return float(parts[1])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -231,6 +240,9 @@ def main(argv: list[str] | None = None) -> int:
         }
         (args.out / f"{me}.json").write_text(json.dumps(result))
         print(f"DONE {me}", flush=True)
+        # Stay alive (token up) until the whole fleet is done, so that finishing early
+        # does not look like a lost robot to the others; bounded.
+        _wait_line("STOP", args.go_timeout)
         return 0
     finally:
         log.close()
