@@ -134,8 +134,12 @@ def contract_range_bearing(
     dx = bwd_sqr(sqr(dx) & (r2 - sqr(dy)), dx)
     dy = bwd_sqr(sqr(dy) & (r2 - sqr(dx)), dy)
     rho = bwd_sqr(r2, rho)
-    # Bearing: alpha = atan2(dy, dx).
-    alpha = alpha & atan2(dy, dx, ref=alpha.mid())
+    # Bearing: alpha = atan2(dy, dx) modulo 2*pi. atan2 gives the branch next to alpha's
+    # centre; when alpha is narrower than pi no other branch can meet it, otherwise the
+    # bearing is not used (a wide alpha could hold the truth on another branch).
+    narrow = alpha.width() < np.pi
+    bearing = atan2(dy, dx, ref=alpha.mid())
+    alpha = alpha & IV(np.where(narrow, bearing.lo, -np.inf), np.where(narrow, bearing.hi, np.inf))
     cal, sal = cos(alpha), sin(alpha)
     rho = bwd_mul(dx, rho, cal)
     rho = bwd_mul(dy, rho, sal)

@@ -181,3 +181,27 @@ def test_relaxed_chain_tolerates_outliers():
     assert set(np.flatnonzero(~consistent)) == {5, 20}
     out0, _ = relaxed_chain(m, valid, d, q=0)
     assert bool(np.any(out0.is_empty()))
+
+
+def test_range_bearing_keeps_other_branches_of_a_wide_heading():
+    # Truth heading 3.0 - 2*pi inside a heading box wider than 2*pi: never cut away.
+    th_true = 3.0 - 2 * math.pi
+    beta = 0.4
+    xi, yi = 0.0, 0.0
+    rho = 5.0
+    xj, yj = rho * math.cos(th_true + beta), rho * math.sin(th_true + beta)
+    out, _ = C.fixpoint(
+        C.contract_range_bearing,
+        [
+            IV.around(xi, 1.0),
+            IV.around(yi, 1.0),
+            IV.of(-4.0, 4.0),
+            IV.around(xj, 0.1),
+            IV.around(yj, 0.1),
+            IV.around(rho, 0.01),
+            IV.around(beta, 0.01),
+        ],
+    )
+    assert (
+        bool(out[2].contains(th_true)) and bool(out[0].contains(xi)) and bool(out[1].contains(yi))
+    )
