@@ -38,6 +38,7 @@ from localization.interval import (
     bwd_sin,
     bwd_sqr,
     cos,
+    meet_angle,
     sin,
     sinc_half,
     sqr,
@@ -113,9 +114,8 @@ def contract_position(x: IV, y: IV, zx: IV, zy: IV) -> tuple[IV, IV]:
 
 def contract_heading(th: IV, z: IV) -> tuple[IV, IV]:
     """Gyro: the heading lies in ``z`` (modulo 2*pi, aligned to ``th``)."""
-    z = align_angle(z, th.mid())
-    th = th & z
-    return th, z & th
+    th = meet_angle(th, z)
+    return th, align_angle(z, th.mid()) & th
 
 
 def contract_range_bearing(

@@ -50,7 +50,7 @@ from localization.contractors import (
     fixpoint,
     odometry_displacement,
 )
-from localization.interval import IV, TWO_PI, align_angle
+from localization.interval import IV, TWO_PI, align_angle, meet_angle
 from localization.odometry import wheels_from_poses
 from msgs import (
     GpsFix,
@@ -217,13 +217,23 @@ class CPLocalizer:
 
     def _hard(self, lst: list[list[float]], iv: IV, angle: bool = False) -> None:
         cur = lst[-1]
-        if angle and math.isfinite(cur[0]) and math.isfinite(cur[1]):
-            iv = align_angle(iv, 0.5 * (cur[0] + cur[1]))
-        elif angle and self._sol is not None and math.isfinite(float(self._sol[2].lo[-1])):
-            iv = align_angle(iv, float(self._sol[2].mid()[-1]))
+        if angle:
+            # Meet modulo 2*pi, inside what is known of this heading already (its hard box
+            # and the latest solution or prediction: all in the chain's representation).
+            iv = meet_angle(IV.of(cur[0], cur[1]) & self._theta_ref(), iv)
         cur[0] = max(cur[0], float(iv.lo))
         cur[1] = min(cur[1], float(iv.hi))
         self._dirty = True
+
+    def _theta_ref(self) -> IV:
+        n = len(self._w.stamps)
+        if self._sol is not None and self._sol[2].lo.shape[0] == n and not self._soft:
+            return self._sol[2][-1]
+        if self._pred is not None and self._sol is not None and self._sol[2].lo.shape[0] == n - 1:
+            return self._pred[2]
+        if self._sol is not None and self._sol[2].lo.shape[0] == n:
+            return self._sol[2][-1]
+        return IV.entire(())
 
     def relative(self, stamp_ns: int, peer_x: IV, peer_y: IV, rho: IV, beta: IV) -> bool:
         """Range ``rho`` and bearing ``beta`` (own body frame) to peers inside the boxes

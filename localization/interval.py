@@ -313,6 +313,32 @@ def align_angle(a: IV, ref) -> IV:
     return a + shift
 
 
+def meet_angle(box: IV, z: IV) -> IV:
+    """``box`` met with the angle interval ``z`` modulo 2*pi: the hull of ``box`` with
+    every branch ``z + 2*pi*k`` that can meet it (k = -2..2 around the aligned one).
+    An unbounded ``box`` takes the branch next to its midpoint (a choice of
+    representation, made once; later angles are aligned to the narrowed box)."""
+    z = align_angle(z, box.mid())
+    if not (np.isfinite(box.lo).all() and np.isfinite(box.hi).all()):
+        finite = np.isfinite(box.lo) & np.isfinite(box.hi)
+        direct = box & z
+        if finite.any():
+            hull = _branch_hull(box, z)
+            return IV(
+                np.where(finite, hull.lo, direct.lo), np.where(finite, hull.hi, direct.hi)
+            )._canon()
+        return direct
+    return _branch_hull(box, z)
+
+
+def _branch_hull(box: IV, z: IV) -> IV:
+    out = IV.empty(np.broadcast_shapes(np.shape(box.lo), np.shape(z.lo)))
+    for k in (-2, -1, 0, 1, 2):
+        shift = IV(np.array(down(k * TWO_PI)), np.array(up(k * TWO_PI)))
+        out = out | (box & (z + shift))
+    return out
+
+
 def sinc_half(d: IV) -> IV:
     """sin(d/2)/(d/2): the chord-to-arc ratio of a turn by ``d``; within
     [1 - m^2/24, 1] for |d| <= m (alternating series), exactly 1 at d = 0."""

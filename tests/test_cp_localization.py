@@ -236,3 +236,31 @@ def test_pipeline_adapter_throttles_and_takes_peer_boxes():
     assert "r9" not in svc.cp.peers
     svc.drop_peer("r2")
     assert not svc.cp.peers
+
+
+def test_spinning_robot_with_wrapped_gyro_and_unknown_initial_heading():
+    from fakes.world.paper_scenario import RobotSpec
+
+    spin = (RobotSpec("s1", Pose2D(0.0, 0.0, 2.5), 1.0, 0.8),)  # ~0.6 rad/s: > 2 turns
+    sc = simulate(spin, duration_s=12.0, seed=12)
+    b = sc.bounds
+    cp = CPLocalizer(_cfg(sc, window=15), robot="s1")
+    cp.start(
+        0,
+        IV.around(sc.gps[0, 0, 0], b.gps_m),
+        IV.around(sc.gps[0, 0, 1], b.gps_m),
+        IV.of(-math.pi, math.pi),
+    )
+    for s in range(sc.steps):
+        st = int(sc.stamps_ns[s])
+        if s:
+            cp.step(st, sc.dsr[0, s], sc.dsl[0, s])
+        wrapped = math.remainder(float(sc.gyro[0, s]), 2 * math.pi)
+        cp.heading(st, IV.around(wrapped, b.gyro_rad))
+        cp.gps(st, *sc.gps[0, s])
+        x, y, th = cp.current()
+        t = sc.truth[0, s]
+        k = round((float(th.mid()) - t[2]) / (2 * math.pi))
+        assert _contains(x, y, th, (t[0], t[1], t[2] + 2 * math.pi * k)), s
+        assert float(th.width()) < 2 * b.gyro_rad + 1e-9
+    assert abs(sc.truth[0, -1, 2] - sc.truth[0, 0, 2]) > 2 * math.pi
