@@ -14,8 +14,13 @@ solver computes the smallest boxes the constraints allow on this decomposition:
    q-relaxed chain through the GPS boxes, so up to ``gps_outliers`` wrong fixes in the
    window (a GPS jump outside its stated bound) neither empty nor bias the box; the fixes
    found inconsistent are reported in :attr:`CPLocalizer.dropped_gps`;
-4. a vectorised HC4 pass of the odometry contractor over the whole window (positions
-   back onto headings and wheel displacements), repeated to a fixpoint.
+4. optionally (``hc4_odometry``) a vectorised HC4 pass of the odometry contractor over
+   the whole window (positions back onto headings), repeated to a fixpoint; off by
+   default: with GPS-sized position boxes it contracts nothing on the paper's scenario.
+
+The window is solved once per step (at the next ``step``, or on :meth:`solve`); between
+solves the latest box is the one-step prediction from the solved window met with the
+step's GPS box (when no outliers are tolerated) and the hard boxes (gyro, peers).
 
 Later measurements thus tighten earlier boxes (the backward half of each chain), and the
 earlier boxes tighten the current one. When a step leaves the window its box becomes a
