@@ -319,6 +319,8 @@ def meet_angle(box: IV, z: IV) -> IV:
     An unbounded ``box`` takes the branch next to its midpoint (a choice of
     representation, made once; later angles are aligned to the narrowed box)."""
     z = align_angle(z, box.mid())
+    if np.all(box.width() + z.width() < TWO_PI - 1e-9):
+        return box & z  # the aligned branch is the only one that can meet the box
     if not (np.isfinite(box.lo).all() and np.isfinite(box.hi).all()):
         finite = np.isfinite(box.lo) & np.isfinite(box.hi)
         direct = box & z
