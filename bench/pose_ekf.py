@@ -18,8 +18,9 @@ which takes fixes as white noise, is pulled towards the bias there. The same fig
 ``--long-runs`` runs of ``--long-length`` m (default 2 x 300 m, about 13 min each) show
 GPS bounding the drift. ``encoder_gyro_gps_tau120`` is the last set with the GPS error's
 correlation time (gps_error_correlation_s = 120 s, the order of magnitude of a standalone
-receiver's) taken into account by inflating R (fusion/pose_ekf.py). Raw filter speed is timed too: predictions (encoder only, and
-with a gyro step fused) and GPS updates per second.
+receiver's) taken into account by inflating R (fusion/pose_ekf.py). Raw filter speed is
+timed too: predictions (encoder only, and with a gyro step fused) and GPS updates per
+second.
 
 The LAST line is a JSON object with those figures per sensor set.
 

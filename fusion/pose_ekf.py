@@ -4,12 +4,13 @@ Prediction (eq. 2-4) on every odometry step: the wheel displacements (dl, dr) �
 from the robot's odometry pose deltas with the configured wheel base, fusion.models — with
 independent wheel noise k^2 |d| + floor^2, give the step u = (ds, dtheta) and its
 covariance Q_u = J Q_wheels J^T (eq. 1), plus (beta dtheta)^2 on dtheta for the wheel
-base's uncertainty while turning (beta = 0.1, as ir-grid-mapping eq. 4 found). If the gyro reported over the same interval, its
-heading change dtheta_g (bias learnt at rest removed; variance (gamma dtheta_g)^2 +
-arw^2 dt + (bias_sigma dt)^2) is a second measurement of dtheta: it is fused into u
-first (Kalman update of the input: innovation dtheta_g - dtheta, S = Q_u[1,1] + R_g),
-which is exact for an increment measurement, unlike treating the drifting gyro angle as
-an absolute heading. Then x = f(x, u), P = F P F^T + G Q_u G^T (eq. 4, A = F, W = G).
+base's uncertainty while turning (beta = 0.1, as ir-grid-mapping eq. 4 found). If the
+gyro reported over the same interval, its heading change dtheta_g (bias learnt at rest
+removed; variance (gamma dtheta_g)^2 + arw^2 dt + (bias_sigma dt)^2) is a second
+measurement of dtheta: it is fused into u first (Kalman update of the input: innovation
+dtheta_g - dtheta, S = Q_u[1,1] + R_g), which is exact for an increment measurement,
+unlike treating the drifting gyro angle as an absolute heading. Then x = f(x, u),
+P = F P F^T + G Q_u G^T (eq. 4, A = F, W = G).
 
 Updates (eq. 4), Joseph form P = (I - K H) P (I - K H)^T + K R K^T, symmetrised, with a
 Cholesky check that repairs (and counts) a covariance that lost positive definiteness:
@@ -37,6 +38,10 @@ gyro_rejected, heading_rejected). ``gate_probability=None`` turns gating off.
 Timeouts: a sensor silent for longer than its timeout (relative to the odometry stamps)
 is flagged stale (``gps_stale``, ``gyro_stale``; transitions counted) and the filter
 predicts on odometry alone. Odometry not newer than the last one is counted and skipped.
+
+Initial pose: ``initial`` (or ``set_pose``); without one, the first GPS fix sets x, y
+and the heading stays at 0 with ``initial_sigma_theta_rad`` — give the start heading with
+``set_pose`` when it is not east (the EKF cannot find a wholly unknown heading).
 
 Output: ``PoseEstimate`` (frame ``map``) and ``bounds(k=3)`` -> ``PoseBox`` with the
 k-sigma interval of each coordinate, to compare with constraint propagation's boxes.
@@ -114,10 +119,10 @@ class PoseEkfParams:
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"PoseEkfParams.{name} must be finite and > 0, got {v!r}")
         for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "turn_noise_fraction",
-                     "gyro_gamma",
-                     "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps", "gps_min_sigma_m",
-                     "gps_max_lag_s", "gps_error_correlation_s", "initial_sigma_xy_m", "initial_sigma_theta_rad",
-                     "bias_window_s", "bias_min_rest_s"):  # fmt: skip
+                     "gyro_gamma", "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps",
+                     "gps_min_sigma_m", "gps_max_lag_s", "gps_error_correlation_s",
+                     "initial_sigma_xy_m", "initial_sigma_theta_rad", "bias_window_s",
+                     "bias_min_rest_s"):  # fmt: skip
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"PoseEkfParams.{name} must be finite and >= 0, got {v!r}")
