@@ -1,7 +1,9 @@
 """``hilnav analyze``: what a log allows to conclude, as a JSON summary (plots in plots.py).
 
-Per robot (topics ``/<robot>/<kind>``), with times taken from the MCAP log times (one clock
-for every topic, written by the daemon):
+Per robot (topics ``/<robot>/<kind>``). Times are the messages' own stamps (``stamp_ns``:
+one host clock in the daemon, the device read time, carried over to the estimates), or the
+MCAP log time for a message without one — log times of service outputs are when the
+service loop got to them, which lags behind when the loop stalls.
 
 - **path error** of every pose source — ``pose`` (pose EKF), ``heading`` (heading filter's
   dead reckoning), ``odometry`` (raw ARCOS odometry in ``odom``, aligned to the reference
@@ -114,7 +116,9 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
             continue
         rl = robots.setdefault(robot, RobotLog(robot))
         rl.counts[kind] += 1
-        msg, t = m.msg, m.log_time_ns
+        msg = m.msg
+        stamp = getattr(msg, "stamp_ns", None)
+        t = stamp if isinstance(stamp, int) and stamp > 0 else m.log_time_ns
         if isinstance(msg, GroundTruth):
             rl.truth.add(t, msg.pose.x, msg.pose.y, msg.pose.theta)
         elif isinstance(msg, PoseEstimate):
