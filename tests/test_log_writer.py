@@ -296,3 +296,16 @@ def test_landmark_map_view_is_a_scene_of_spheres() -> None:
     ]
     assert spheres[0]["size"]["x"] == pytest.approx(6 * 0.2)  # 3 sigma each side
     assert spheres[1]["size"]["x"] == pytest.approx(6 * 1.0)
+
+
+def test_non_finite_values_keep_the_native_record_and_skip_the_view(tmp_path: Path) -> None:
+    path = tmp_path / "nan.mcap"
+    with LogWriter(path) as w:
+        bad = PoseEstimate(T0, Pose2D(float("nan"), 0.0, 0.0), (float("inf"),) * 9)
+        w.write("/r1/pose", bad, T0)
+        w.write("/r1/pose", PoseEstimate(T0 + 1, Pose2D(1.0, 0.0, 0.0), (0.0,) * 9), T0 + 1)
+        assert w.views_skipped == 1
+    stats = ReadStats()
+    got = [m.msg for m in read_messages(path, stats=stats)]
+    assert len(got) == 2 and math.isnan(got[0].pose.x) and got[0].covariance[0] == math.inf
+    assert stats.views == 1
