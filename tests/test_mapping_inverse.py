@@ -15,7 +15,9 @@ ONE = np.zeros((1, 3))  # one sensor at the robot's centre, looking forward
 
 
 def _grid(**kw):
-    return OccupancyGrid(GridConfig(resolution_m=0.05, origin_m=(-1.0, -2.0), size_m=(8.0, 4.0), **kw))
+    return OccupancyGrid(
+        GridConfig(resolution_m=0.05, origin_m=(-1.0, -2.0), size_m=(8.0, 4.0), **kw)
+    )
 
 
 def _scan(*readings):
@@ -143,7 +145,9 @@ def test_beam_leaving_the_map_grows_it_and_keeps_old_cells_in_place():
     assert _at(g, 9.51, 0.01)[0] == pytest.approx(logit(model.config.p_occupied))
     # Growing to the south (negative side) shifts the origin, not the cells.
     south = g.origin[1]
-    model.integrate(g, beams_from_scan(Pose2D(0.0, -3.0, -math.pi / 2), 0.0, _scan((3.0, "ok")), ONE))
+    model.integrate(
+        g, beams_from_scan(Pose2D(0.0, -3.0, -math.pi / 2), 0.0, _scan((3.0, "ok")), ONE)
+    )
     assert g.origin[1] < south - 2.0
     assert _at(g, 2.01, 0.01)[0] == mark
     assert _at(g, 0.01, -6.01)[0] == pytest.approx(logit(model.config.p_occupied))
