@@ -82,7 +82,7 @@ class IrDevice:
     rate_hz: int = field(default=20, metadata=_check(lambda v: 1 <= v <= 1000, "must be 1..1000"))
     adc_bits: int = field(default=10, metadata=_choice(10, 12))
     vref_v: float = field(default=5.0, metadata=_positive("5.0"))
-    median_window: int = field(default=1, metadata=_check(lambda v: 1 <= v <= 15, "1..15"))
+    median_window: int = field(default=3, metadata=_check(lambda v: 1 <= v <= 15, "1..15"))
 
 
 @dataclass(frozen=True)

@@ -62,6 +62,8 @@ class InterimHeading:
     of a cheap gyro does not become heading drift.
     """
 
+    MIN_BIAS_SAMPLES = 50  # standstill samples before the bias estimate is used
+
     def __init__(self, cfg: RobotConfig) -> None:
         n = cfg.noise
         self.alpha = n.encoder_alpha_rad_per_m
@@ -73,7 +75,8 @@ class InterimHeading:
         self.var = math.radians(0.1) ** 2
         self._odo: RobotOdometry | None = None
         self._gyro_stamp: int | None = None
-        self._gyro_angle = 0.0  # bias-corrected integral of the rate
+        self._gyro_angle = 0.0  # the device's angle, bias-corrected
+        self._gyro_raw = 0.0
         self._gyro_at_odo: float | None = None
         self._bias = 0.0
         self._bias_n = 0
@@ -89,21 +92,24 @@ class InterimHeading:
         return []
 
     def _gyro(self, g: GyroSample) -> None:
-        if not math.isfinite(g.rate_radps):
+        if not (math.isfinite(g.rate_radps) and math.isfinite(g.angle_rad)):
             return
-        if self._still:
+        if self._still and abs(g.rate_radps) < math.radians(2.0):
             self._bias_n = min(self._bias_n + 1, 2000)
             self._bias += (g.rate_radps - self._bias) / self._bias_n
         if self._gyro_stamp is not None:
             dt = (g.stamp_ns - self._gyro_stamp) * 1e-9
-            if 0.0 < dt < 0.5:
-                self._gyro_angle += (g.rate_radps - self._bias) * dt
+            # the device integrates its own angle; remove the bias it integrated too
+            bias = self._bias if self._bias_n >= self.MIN_BIAS_SAMPLES else 0.0
+            self._gyro_angle += (g.angle_rad - self._gyro_raw) - bias * max(dt, 0.0)
+        self._gyro_raw = g.angle_rad
         self._gyro_stamp = g.stamp_ns
 
     def _odometry(self, o: RobotOdometry) -> HeadingEstimate | None:
         prev = self._odo
         self._odo = o
-        self._still = abs(o.linear_vel_mps) < 1e-6 and abs(o.angular_vel_radps) < 1e-6
+        still = abs(o.linear_vel_mps) < 1e-6 and abs(o.angular_vel_radps) < 1e-6
+        self._still = still and prev is not None and not prev.moving and not o.moving
         gyro_now = self._gyro_angle if self._gyro_stamp is not None else None
         gyro_prev, self._gyro_at_odo = self._gyro_at_odo, gyro_now
         if prev is None:
@@ -113,8 +119,10 @@ class InterimHeading:
         dd = dx * math.cos(p0.theta) + dy * math.sin(p0.theta)
         du_enc = wrap_angle(p1.theta - p0.theta)
         sw2 = (self.alpha * dd) ** 2 + (self.beta * du_enc) ** 2 + 1e-12
-        if gyro_now is not None and gyro_prev is not None:
-            du_gyro = gyro_now - gyro_prev
+        du_gyro = gyro_now - gyro_prev if gyro_now is not None and gyro_prev is not None else None
+        if du_gyro is not None and abs(du_gyro - du_enc) > 0.5:
+            du_gyro = None  # the gyro was reset or reconnected in between: encoder only
+        if du_gyro is not None:
             dt = max((o.stamp_ns - prev.stamp_ns) * 1e-9, 0.0)
             sg2 = (self.gamma * du_gyro) ** 2 + self.gyro_noise**2 * dt + 1e-12
             k = sw2 / (sw2 + sg2)
