@@ -20,6 +20,10 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.demo",
     "hilnav.commands.config",
     "hilnav.commands.run",
+    "hilnav.commands.log",
+    "hilnav.commands.analyze",
+    "hilnav.commands.replay",
+    "hilnav.commands.importer",
 )
 
 

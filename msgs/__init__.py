@@ -7,8 +7,10 @@ from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, sche
 from msgs.diagnostics import DeviceDiagnostics
 from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D, wrap_angle
+from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
+from msgs.relative import RelativeMeasurement
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
 from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
 
@@ -23,13 +25,17 @@ __all__ = [
     "Interval",
     "IrScan",
     "IrStatus",
+    "LandmarkMap",
+    "LandmarkScan",
     "OccupancyGridMsg",
     "Pose2D",
     "PoseBox",
     "PoseEstimate",
     "RawBytes",
+    "RelativeMeasurement",
     "RobotInfo",
     "RobotOdometry",
+    "VehicleControl",
     "VelocityCommand",
     "decode",
     "encode",
