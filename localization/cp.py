@@ -34,11 +34,16 @@ Message-level API (what the daemon's pipeline calls)::
     loc.feed_gps(GpsFix) -> PoseBox | None                # east_m / north_m
     loc.feed_peer_box(PoseBox) -> None                    # another robot's latest box
     loc.feed_relative(RelativeMeasurement) -> PoseBox | None
+    loc.feed_relatives(list[RelativeMeasurement]) -> PoseBox | None   # all peers at once
+    loc.drop_peer(robot)                                  # a peer left: carry on alone
     loc.feed(msg) -> PoseBox | None                       # dispatch on the type
-    loc.box() -> PoseBox ; loc.window_boxes() -> list[PoseBox]
+    loc.box() -> PoseBox ; loc.window_boxes() -> list[PoseBox]  # smoothed window
+    loc.dropped_gps: list[int]  (stamps of fixes voted out) ; loc.skipped: dict[str, int]
 
-Array-level API (benches, tests): ``start``, ``step(stamp, dsr, dsl)``,
-``gps(stamp, east, north)``, ``heading(stamp, theta)``, ``relative(...)``, ``current()``.
+Array-level API (benches, tests): ``start(stamp, x, y, th)``, ``step(stamp, dsr, dsl)``,
+``gps(stamp, east, north)``, ``heading(stamp, theta_iv)``, ``position_box(x, y)``,
+``relative(stamp, peer_x, peer_y, rho, beta)``, ``current()``, ``solve()``,
+``window_arrays()``.
 """
 
 from __future__ import annotations
