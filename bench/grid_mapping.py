@@ -6,8 +6,9 @@ room with furniture (FloorPlan ``paper_room``). The IR readings go through the f
 own error model (fakes.world.ir_model: curve with near-range ambiguity, voltage noise,
 dropouts, 10-bit ADC) and the driver's curve (drivers.sharp) with a 3-sample median, so
 the map sees the IrScan messages the real driver would report. The heading is encoder +
-gyro (eq. 1-4): ``fusion.heading`` when it is on this branch, otherwise a minimal
-in-bench version of the same filter (``_MiniHeadingFilter``).
+gyro (eq. 1-4): ``fusion.heading.HeadingFilter`` with the paper's alpha, beta, gamma plus
+the gyro's angle random walk, fed the encoder and (bias-calibrated) gyro heading changes
+of every 0.1 s scan period.
 
 Two maps are built from the same run: without data association (poses as estimated),
 and with sample-based data association (eq. 7-8). Both are compared with the true map
@@ -35,6 +36,7 @@ if __package__ in (None, ""):
 
 from drivers.sharp import STATUS_NAMES, SharpCurve  # noqa: E402
 from fakes.world import GyroErrorModel, IrErrorModel, SlipModel, World  # noqa: E402
+from fusion.heading import HeadingFilter, HeadingParams  # noqa: E402
 from mapping.association import AssociationConfig, SampleAssociation  # noqa: E402
 from mapping.export import write_map, write_png  # noqa: E402
 from mapping.grid import GridConfig, OccupancyGrid  # noqa: E402
@@ -80,34 +82,6 @@ class Run:
     extra: dict = field(default_factory=dict)
 
 
-class _MiniHeadingFilter:
-    """Minimal encoder + gyro heading filter (ir-grid-mapping eq. 1-4), for the bench only.
-
-    The encoder's heading change u (variance sigma_w^2 = (alpha dd)^2 + (beta dth_enc)^2)
-    and the gyro's (variance (gamma dth_gyro)^2) are fused per step; the fused heading's
-    variance grows by the fused increment's variance (the gyro measures changes too, so
-    the uncertainty cannot shrink, as the paper notes), plus the gyro's white noise.
-    """
-
-    def __init__(self, pose: Pose2D, alpha=3 * DEG, beta=0.1, gamma=0.02, gyro_noise=0.0):
-        self.theta = pose.theta
-        self.x, self.y = pose.x, pose.y
-        self.var = (0.1 * DEG) ** 2
-        self.alpha, self.beta, self.gamma = alpha, beta, gamma
-        self.gyro_noise = gyro_noise
-
-    def step(self, dd: float, dth_enc: float, dth_gyro: float, dt: float) -> None:
-        sw2 = (self.alpha * dd) ** 2 + (self.beta * dth_enc) ** 2 + 1e-12
-        sg2 = (self.gamma * dth_gyro) ** 2 + (self.gyro_noise**2) * dt + 1e-12
-        k = sw2 / (sw2 + sg2)
-        u = dth_enc + k * (dth_gyro - dth_enc)
-        mid = self.theta + 0.5 * u
-        self.x += dd * math.cos(mid)
-        self.y += dd * math.sin(mid)
-        self.theta = wrap_angle(self.theta + u)
-        self.var += sw2 * (1 - k)
-
-
 def _route(start: tuple[float, float], distance_m: float) -> list[tuple[float, float]]:
     pts = [start]
     length, loop = 0.0, 0
@@ -146,7 +120,9 @@ def simulate(
     # Stand still 3 s: the gyro's turn-on bias is calibrated, as a robot does at boot.
     rates = [gyro.sample(0.0, dt) for _ in range(int(3.0 / dt))]
     bias = float(np.mean(rates))
-    filt = _MiniHeadingFilter(start, gyro_noise=gyro.noise_density_radps_rthz)
+    filt = HeadingFilter(
+        HeadingParams(gyro_arw_rad_per_sqrt_s=gyro.noise_density_radps_rthz), initial=start
+    )
     base = robot.wheelbase_m
     route = _route((start.x, start.y), distance_m)
     wp = 0
@@ -201,18 +177,19 @@ def simulate(
         )
         seq += 1
         est = Pose2D(filt.x, filt.y, filt.theta)
-        steps.append(Step(robot.pose, HeadingEstimate(stamp, filt.theta, filt.var, est), scan))
+        steps.append(Step(robot.pose, HeadingEstimate(stamp, filt.theta, filt.variance, est), scan))
     last = steps[-1]
     return Run(
         steps=steps,
         distance_m=robot.distance_m,
-        final_heading_error_deg=math.degrees(
-            wrap_angle(last.heading.theta_rad - last.truth.theta)
-        ),
+        final_heading_error_deg=math.degrees(wrap_angle(last.heading.theta_rad - last.truth.theta)),
         final_position_error_m=math.hypot(
             last.heading.pose.x - last.truth.x, last.heading.pose.y - last.truth.y
         ),
-        extra={"gyro_scale": gyro.scale, "gyro_bias_residual_degps": math.degrees(gyro.bias_radps - bias)},
+        extra={
+            "gyro_scale": gyro.scale,
+            "gyro_bias_residual_degps": math.degrees(gyro.bias_radps - bias),
+        },
     )
 
 

@@ -18,6 +18,13 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.fake",
     "hilnav.commands.probe",
     "hilnav.commands.demo",
+    "hilnav.commands.config",
+    "hilnav.commands.run",
+    "hilnav.commands.log",
+    "hilnav.commands.analyze",
+    "hilnav.commands.replay",
+    "hilnav.commands.importer",
+    "hilnav.commands.fleet",
 )
 
 

@@ -99,3 +99,47 @@ def _add_sensors(runner: FakeRunner, opts: FakeOptions) -> None:
             raise CliError(str(exc)) from None
     elif "gps" in opts.devices:
         runner.add(GpsEmulator(opts.robot, opts.gps_rate_hz, GpsErrorModel(seed=opts.seed + 3)))
+
+
+class TruthPublisher:
+    """A pseudo-emulator: publishes the world's true pose of one robot on the Zenoh bus
+    (``hilnav/<robot>/truth``, msgs.GroundTruth, wall-clock stamps like the drivers') at
+    ``rate_hz``, so the daemon logs the truth beside what its sensors say."""
+
+    name = "truth"
+
+    def __init__(self, robot: str, bus, rate_hz: float = 10.0) -> None:  # noqa: ANN001
+        self.robot = robot
+        self.bus = bus
+        self.rate_hz = rate_hz
+        self.published = 0
+        self._runner = None
+        self._due = 0.0
+
+    def start(self, runner) -> None:  # noqa: ANN001
+        self._runner = runner
+
+    def tick(self, dt: float) -> None:
+        if self._runner is None:
+            return
+        self._due += dt * self.rate_hz
+        if self._due < 1.0:
+            return
+        self._due -= int(self._due)
+        import time
+
+        from msgs import GroundTruth
+
+        r = self._runner.world.robots[self.robot]
+        msg = GroundTruth(time.time_ns(), self.robot, r.pose, r.speed_mps, r.yaw_rate_radps)
+        try:
+            self.bus.publish("truth", msg)
+            self.published += 1
+        except Exception:  # noqa: BLE001 - the world thread must keep running
+            pass
+
+    def stop(self) -> None:
+        self._runner = None
+
+    def ports(self) -> dict[str, str]:
+        return {}

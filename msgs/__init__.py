@@ -10,6 +10,7 @@ from msgs.geometry import Interval, Pose2D, wrap_angle
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
+from msgs.relative import RelativeMeasurement
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
 from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
 
@@ -31,6 +32,7 @@ __all__ = [
     "PoseBox",
     "PoseEstimate",
     "RawBytes",
+    "RelativeMeasurement",
     "RobotInfo",
     "RobotOdometry",
     "VehicleControl",

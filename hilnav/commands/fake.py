@@ -59,6 +59,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="arcos,ir,gyro,gps",
         help="comma-separated devices to emulate (default arcos,ir,gyro,gps)",
     )
+    p.add_argument(
+        "--zenoh-connect",
+        default=None,
+        metavar="ENDPOINT",
+        help="publish the ground truth on hilnav/<robot>/truth through a Zenoh peer "
+        "connected to ENDPOINT (e.g. tcp/127.0.0.1:7447; multicast scouting off)",
+    )
+    p.add_argument("--truth-rate", type=float, default=10.0, help="ground-truth messages per s")
     p.set_defaults(func=run)
 
 
@@ -89,6 +97,20 @@ def run(args: argparse.Namespace) -> int:
         replay_fast=args.replay_fast,
     )
     runner = build_fakes(opts)
+    bus = None
+    if args.zenoh_connect:
+        from hilnav.bus import Bus, ZenohSettings
+        from hilnav.fakeset import TruthPublisher
+
+        # gossip on, listening on loopback only: when the daemon gossips too (the demo),
+        # other sessions (the operator) reach this one directly and see the truth
+        bus = Bus(
+            opts.robot,
+            ZenohSettings(
+                listen=("tcp/127.0.0.1:0",), connect=(args.zenoh_connect,), gossip_scouting=True
+            ),
+        )
+        runner.add(TruthPublisher(opts.robot, bus, args.truth_rate))
     done = threading.Event()
 
     def on_signal(signum, frame):  # noqa: ANN001
@@ -102,5 +124,7 @@ def run(args: argparse.Namespace) -> int:
         done.wait(args.duration)
     finally:
         runner.stop()
+        if bus is not None:
+            bus.close()
     sys.stdout.flush()
     return 0

@@ -1,0 +1,114 @@
+"""Motion and measurement models of the pose EKF, with their Jacobians (ekf-vs-cp eq. 1-3).
+
+Differential drive, ekf-vs-cp.txt eq. (1): wheel displacements (dl, dr) give the step
+    ds = (dr + dl) / 2,    dtheta = (dr - dl) / e          (e: wheel base)
+and eq. (2) moves the pose by ds along a heading inside the step:
+    x' = x + ds cos(theta + c dtheta)
+    y' = y + ds sin(theta + c dtheta)
+    theta' = theta + dtheta
+The paper prints c = 1 (heading at the end of the step); c = 1/2 (the midpoint, default
+here) is exact for a constant-curvature step when ds is the chord, which is what
+fusion.increments produces, and second-order accurate otherwise.
+
+Jacobians (derived here, checked against finite differences in tests/test_fusion_pose_ekf):
+with a = theta + c dtheta,
+    F = d f / d(x, y, theta)  = [[1, 0, -ds sin a], [0, 1, ds cos a], [0, 0, 1]]
+    G = d f / d(ds, dtheta)   = [[cos a, -c ds sin a], [sin a, c ds cos a], [0, 1]]
+    J = d(ds, dtheta) / d(dl, dr) = [[1/2, 1/2], [-1/e, 1/e]]
+
+Wheel noise: each wheel's displacement error is white with variance k^2 |d| + floor^2
+(slip and tread deformation grow with the distance rolled; Chong & Kleeman's
+non-systematic odometry model), independent between wheels. Turning adds the error of the
+effective wheel base (tyre scrub, floor): variance (beta dtheta)^2 on dtheta, the beta
+term of ir-grid-mapping eq. (4).
+
+Measurements: GPS position of an antenna mounted at (ax, ay) on the robot,
+    h = [x + ax cos theta - ay sin theta, y + ax sin theta + ay cos theta],
+    H = [[1, 0, -ax sin theta - ay cos theta], [0, 1, ax cos theta - ay sin theta]];
+an absolute heading, h = theta, H = [0, 0, 1] (innovation wrapped to (-pi, pi]).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from msgs import wrap_angle
+
+
+def wheels_to_step(dl: float, dr: float, wheelbase_m: float) -> np.ndarray:
+    """Eq. (1): (ds, dtheta) of wheel displacements (dl, dr) in metres."""
+    return np.array([0.5 * (dr + dl), (dr - dl) / wheelbase_m])
+
+
+def step_to_wheels(ds: float, dtheta: float, wheelbase_m: float) -> np.ndarray:
+    """Inverse of eq. (1): wheel displacements (dl, dr) of a step (ds, dtheta)."""
+    h = 0.5 * wheelbase_m * dtheta
+    return np.array([ds - h, ds + h])
+
+
+def wheels_jacobian(wheelbase_m: float) -> np.ndarray:
+    """J = d(ds, dtheta) / d(dl, dr)."""
+    return np.array([[0.5, 0.5], [-1.0 / wheelbase_m, 1.0 / wheelbase_m]])
+
+
+def wheel_covariance(dl: float, dr: float, k_m_per_sqrt_m: float, floor_m: float) -> np.ndarray:
+    """2x2 covariance of (dl, dr): diag(k^2 |d| + floor^2)."""
+    f2 = floor_m * floor_m
+    k2 = k_m_per_sqrt_m * k_m_per_sqrt_m
+    return np.diag([k2 * abs(dl) + f2, k2 * abs(dr) + f2])
+
+
+def step_covariance(
+    dl: float,
+    dr: float,
+    wheelbase_m: float,
+    k_m_per_sqrt_m: float,
+    floor_m: float,
+    turn_fraction: float = 0.0,
+) -> np.ndarray:
+    """2x2 covariance of (ds, dtheta): J Q_wheels J^T, plus (beta dtheta)^2 on dtheta."""
+    j = wheels_jacobian(wheelbase_m)
+    q = j @ wheel_covariance(dl, dr, k_m_per_sqrt_m, floor_m) @ j.T
+    if turn_fraction:
+        q[1, 1] += (turn_fraction * (dr - dl) / wheelbase_m) ** 2
+    return q
+
+
+def motion(state: np.ndarray, u: np.ndarray, c: float = 0.5) -> np.ndarray:
+    """Eq. (2): the pose after step u = (ds, dtheta); theta wrapped."""
+    x, y, th = state
+    ds, dth = u
+    a = th + c * dth
+    return np.array([x + ds * math.cos(a), y + ds * math.sin(a), wrap_angle(th + dth)])
+
+
+def motion_jacobians(
+    state: np.ndarray, u: np.ndarray, c: float = 0.5
+) -> tuple[np.ndarray, np.ndarray]:
+    """(F, G): Jacobians of :func:`motion` with respect to the state and to u."""
+    th = state[2]
+    ds, dth = u
+    a = th + c * dth
+    ca, sa = math.cos(a), math.sin(a)
+    f = np.array([[1.0, 0.0, -ds * sa], [0.0, 1.0, ds * ca], [0.0, 0.0, 1.0]])
+    g = np.array([[ca, -c * ds * sa], [sa, c * ds * ca], [0.0, 1.0]])
+    return f, g
+
+
+def position_measurement(
+    state: np.ndarray, lever_m: tuple[float, float] = (0.0, 0.0)
+) -> tuple[np.ndarray, np.ndarray]:
+    """(h, H) of a position sensor (GPS antenna) mounted at ``lever_m`` on the robot."""
+    x, y, th = state
+    ax, ay = lever_m
+    c, s = math.cos(th), math.sin(th)
+    h = np.array([x + ax * c - ay * s, y + ax * s + ay * c])
+    jac = np.array([[1.0, 0.0, -ax * s - ay * c], [0.0, 1.0, ax * c - ay * s]])
+    return h, jac
+
+
+def heading_measurement(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(h, H) of an absolute heading sensor."""
+    return np.array([state[2]]), np.array([[0.0, 0.0, 1.0]])

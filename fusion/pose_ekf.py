@@ -1,0 +1,523 @@
+"""Pose EKF on (x, y, theta): wheel odometry, gyro and GPS (ekf-vs-cp.txt §2.1-2.2, eq. 1-4).
+
+Prediction (eq. 2-4) on every odometry step: the wheel displacements (dl, dr) — recovered
+from the robot's odometry pose deltas with the configured wheel base, fusion.models — with
+independent wheel noise k^2 |d| + floor^2, give the step u = (ds, dtheta) and its
+covariance Q_u = J Q_wheels J^T (eq. 1), plus (beta dtheta)^2 on dtheta for the wheel
+base's uncertainty while turning (beta = 0.1, as ir-grid-mapping eq. 4 found). If the
+gyro reported over the same interval, its heading change dtheta_g (bias learnt at rest
+removed; variance (gamma dtheta_g)^2 + arw^2 dt + (bias_sigma dt)^2) is a second
+measurement of dtheta: it is fused into u first (Kalman update of the input: innovation
+dtheta_g - dtheta, S = Q_u[1,1] + R_g), which is exact for an increment measurement,
+unlike treating the drifting gyro angle as an absolute heading. Then x = f(x, u),
+P = F P F^T + G Q_u G^T (eq. 4, A = F, W = G).
+
+Updates (eq. 4), Joseph form P = (I - K H) P (I - K H)^T + K R K^T, symmetrised, with a
+Cholesky check that repairs (and counts) a covariance that lost positive definiteness:
+- GPS position (GpsFix.east_m/north_m, local metres of the NMEA driver): R from the GST
+  standard deviations when present, else per-axis sigma = HDOP x UERE / sqrt(2) (HDOP x
+  UERE is the horizontal DRMS); fixes without a 2D/3D fix or local metres are counted
+  (gps_no_fix) and skipped. A fix whose stamp is older than the filter time by more than
+  ``gps_max_lag_s``, or not newer than the previous fix, is rejected and counted
+  (out_of_order_gps); a fix within the lag is applied now with R inflated by
+  (speed x lag)^2, the distance driven meanwhile. A receiver's error is not white: it
+  wanders with a correlation time of minutes (satellite geometry, ionosphere), so fixes
+  taken every second are far from independent and an EKF treating them as white grows
+  over-confident (its 3-sigma box stops containing the truth, the very point ekf-vs-cp
+  makes). ``gps_error_correlation_s`` = tau > 0 scales R by max(1, tau / dt), dt the time
+  since the last fix used: the fixes of one correlation time together carry about the
+  information of one. Off (0) by default; bench/pose_ekf.py shows both.
+- absolute heading (``update_heading``, e.g. a compass or an aligned gyro).
+
+Gating: every measurement's squared Mahalanobis distance (NIS) nu^T S^-1 nu is compared
+with the chi-square quantile of its dimension at ``gate_probability`` (default 0.99:
+9.21 for GPS with 2 dof, 6.63 for the gyro step and the heading with 1 dof, from
+scipy.stats.chi2.ppf); beyond it the measurement is rejected and counted (gps_rejected,
+gyro_rejected, heading_rejected). ``gate_probability=None`` turns gating off.
+
+Timeouts: a sensor silent for longer than its timeout (relative to the odometry stamps)
+is flagged stale (``gps_stale``, ``gyro_stale``; transitions counted) and the filter
+predicts on odometry alone. Odometry not newer than the last one is counted and skipped.
+
+Initial pose: ``initial`` (or ``set_pose``); without one, the first GPS fix sets x, y
+and the heading stays at 0 with ``initial_sigma_theta_rad`` — give the start heading with
+``set_pose`` when it is not east (the EKF cannot find a wholly unknown heading).
+
+Output: ``PoseEstimate`` (frame ``map``) and ``bounds(k=3)`` -> ``PoseBox`` with the
+k-sigma interval of each coordinate, to compare with constraint propagation's boxes.
+
+Message-level API (what the daemon calls):
+    ekf = PoseEkf(PoseEkfParams(...), initial=Pose2D(...))
+    ekf.feed(msg) -> PoseEstimate | None   # RobotOdometry / GpsFix -> estimate; GyroSample -> None
+    ekf.feed_odometry(m), ekf.feed_gyro(m), ekf.feed_gps(m)
+    ekf.estimate() -> PoseEstimate; ekf.bounds(3.0) -> PoseBox
+    ekf.set_pose(pose, stamp_ns=None, covariance=None); ekf.reset()
+    ekf.counters() -> dict (for diagnostics); ekf.stale(now_ns) -> dict[str, bool]
+Array-level API: predict(dl, dr, dtheta_gyro=None, gyro_var=None),
+update_position(z, R), update_heading(theta, var) -> UpdateResult.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from fusion import models
+from fusion.increments import GyroDeltas, OdometryDeltas, RestBias
+from msgs import (
+    GpsFix,
+    GyroSample,
+    Interval,
+    Pose2D,
+    PoseBox,
+    PoseEstimate,
+    RobotOdometry,
+    wrap_angle,
+)
+
+DEG = math.pi / 180.0
+NS = 1e-9
+
+
+@dataclass(frozen=True)
+class PoseEkfParams:
+    """Noise, gating and timeout parameters of the pose EKF (SI units)."""
+
+    wheelbase_m: float = 0.33
+    wheel_noise_m_per_sqrt_m: float = 0.005
+    wheel_noise_floor_m: float = 1e-4
+    turn_noise_fraction: float = 0.1
+    heading_point: float = 0.5
+    gyro_gamma: float = 0.02
+    gyro_arw_rad_per_sqrt_s: float = 0.015 * DEG
+    gyro_bias_sigma_radps: float = 0.005 * DEG
+    gyro_timeout_s: float = 0.5
+    odometry_timeout_s: float = 0.5
+    learn_bias_at_rest: bool = True
+    bias_window_s: float = 30.0
+    bias_min_rest_s: float = 0.5
+    gps_uere_m: float = 4.0
+    gps_min_sigma_m: float = 0.02
+    gps_timeout_s: float = 3.0
+    gps_max_lag_s: float = 0.25
+    gps_lever_m: tuple[float, float] = (0.0, 0.0)
+    gps_error_correlation_s: float = 0.0
+    init_from_gps: bool = True
+    gate_probability: float | None = 0.99
+    initial_sigma_xy_m: float = 0.01
+    initial_sigma_theta_rad: float = 0.1 * DEG
+    frame: str = "map"
+    robot: str = "r1"
+
+    def __post_init__(self) -> None:
+        for name in ("wheelbase_m", "gps_uere_m", "gps_timeout_s", "gyro_timeout_s",
+                     "odometry_timeout_s"):  # fmt: skip
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"PoseEkfParams.{name} must be finite and > 0, got {v!r}")
+        for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "turn_noise_fraction",
+                     "gyro_gamma", "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps",
+                     "gps_min_sigma_m", "gps_max_lag_s", "gps_error_correlation_s",
+                     "initial_sigma_xy_m", "initial_sigma_theta_rad", "bias_window_s",
+                     "bias_min_rest_s"):  # fmt: skip
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"PoseEkfParams.{name} must be finite and >= 0, got {v!r}")
+        g = self.gate_probability
+        if g is not None and not 0.0 < g < 1.0:
+            raise ValueError(f"PoseEkfParams.gate_probability must be in (0, 1) or None, got {g!r}")
+
+    def gate(self, dof: int) -> float:
+        """Chi-square gate on the NIS for a measurement of ``dof`` dimensions (inf: off)."""
+        if self.gate_probability is None:
+            return math.inf
+        return float(chi2.ppf(self.gate_probability, dof))
+
+
+@dataclass(frozen=True, slots=True)
+class UpdateResult:
+    """What one measurement did: accepted or gated out, its NIS and dimension."""
+
+    kind: str
+    accepted: bool
+    nis: float
+    dof: int
+
+
+@dataclass
+class EkfCounters:
+    odometry: int = 0
+    gyro: int = 0
+    gps: int = 0
+    predictions: int = 0
+    gyro_fused: int = 0
+    gyro_rejected: int = 0
+    gyro_misaligned: int = 0
+    gps_updates: int = 0
+    gps_rejected: int = 0
+    gps_no_fix: int = 0
+    gps_init: int = 0
+    heading_updates: int = 0
+    heading_rejected: int = 0
+    out_of_order_gps: int = 0
+    gps_timeouts: int = 0
+    gyro_timeouts: int = 0
+    covariance_repairs: int = 0
+    bad_input: int = 0
+    resets: int = 0
+    extra: dict[str, int] = field(default_factory=dict)
+
+
+class PoseEkf:
+    """EKF on (x, y, theta) fed odometry, gyro and GPS (see module docstring)."""
+
+    def __init__(self, params: PoseEkfParams | None = None, initial: Pose2D | None = None):
+        self.params = p = params or PoseEkfParams()
+        self._gates = {1: p.gate(1), 2: p.gate(2)}
+        self._odo = OdometryDeltas()
+        self._gyro = GyroDeltas()
+        self._bias = RestBias(p.bias_window_s, p.bias_min_rest_s)
+        self._count = EkfCounters()
+        self.last_nis: dict[str, float] = {"gps": math.nan, "gyro": math.nan, "heading": math.nan}
+        self.gps_stale = True
+        self.gyro_stale = True
+        self._initial = initial
+        self._speed_mps = 0.0
+        self._last_gps_ns: int | None = None
+        self._last_gps_used_ns: int | None = None
+        self.reset(initial)
+        self._count.resets = 0
+
+    # -- state -----------------------------------------------------------------------
+    def _initial_cov(self) -> np.ndarray:
+        p = self.params
+        return np.diag(
+            [p.initial_sigma_xy_m**2, p.initial_sigma_xy_m**2, p.initial_sigma_theta_rad**2]
+        )
+
+    def reset(self, pose: Pose2D | None = None, stamp_ns: int = 0) -> None:
+        """Forget everything but the counters; restart at ``pose`` (default: the initial one).
+
+        Without a pose the filter re-initialises its position from the next GPS fix when
+        ``init_from_gps`` is set.
+        """
+        known = pose is not None or self._initial is not None
+        pose = pose or self._initial or Pose2D()
+        self.x = np.array([pose.x, pose.y, wrap_angle(pose.theta)], dtype=float)
+        self.P = self._initial_cov()
+        self.stamp_ns = int(stamp_ns)
+        self._pose_set = known
+        self._odo.reset()
+        self._gyro.reset()
+        self._last_gps_ns = None
+        self._last_gps_used_ns = None
+        self._speed_mps = 0.0
+        self._count.resets += 1
+
+    def set_pose(
+        self,
+        pose: Pose2D,
+        stamp_ns: int | None = None,
+        covariance: np.ndarray | tuple[float, ...] | None = None,
+    ) -> None:
+        """Set the state (and covariance, 3x3 or 9 values; default the initial one)."""
+        cov = self._initial_cov() if covariance is None else np.asarray(covariance, float)
+        cov = cov.reshape(3, 3)
+        if not np.all(np.isfinite(cov)) or not _is_pd(cov):
+            raise ValueError(
+                "set_pose: covariance must be a finite symmetric positive-definite 3x3"
+            )
+        if not all(math.isfinite(v) for v in (pose.x, pose.y, pose.theta)):
+            raise ValueError(f"set_pose: pose must be finite, got {pose}")
+        self.x = np.array([pose.x, pose.y, wrap_angle(pose.theta)], dtype=float)
+        self.P = 0.5 * (cov + cov.T)
+        if stamp_ns is not None:
+            self.stamp_ns = int(stamp_ns)
+        self._pose_set = True
+
+    @property
+    def pose(self) -> Pose2D:
+        return Pose2D(float(self.x[0]), float(self.x[1]), float(self.x[2]))
+
+    @property
+    def gyro_bias_radps(self) -> float:
+        return self._bias.bias_radps
+
+    def estimate(self) -> PoseEstimate:
+        return PoseEstimate(
+            stamp_ns=self.stamp_ns,
+            pose=self.pose,
+            covariance=tuple(float(v) for v in self.P.ravel()),
+            frame=self.params.frame,
+            source="pose_ekf",
+        )
+
+    def bounds(self, k: float = 3.0) -> PoseBox:
+        """The k-sigma box on x, y, theta (theta not wrapped: lo/hi may pass +-pi)."""
+        s = np.sqrt(np.maximum(np.diag(self.P), 0.0)) * k
+        x, y, th = (float(v) for v in self.x)
+        return PoseBox(
+            self.stamp_ns,
+            self.params.robot,
+            Interval(x - s[0], x + s[0]),
+            Interval(y - s[1], y + s[1]),
+            Interval(th - s[2], th + s[2]),
+            frame=self.params.frame,
+        )
+
+    # -- array-level -----------------------------------------------------------------
+    def predict(
+        self,
+        dl: float,
+        dr: float,
+        dtheta_gyro: float | None = None,
+        gyro_var: float | None = None,
+    ) -> UpdateResult | None:
+        """Propagate by wheel displacements (m); fuse a gyro step (rad, variance rad^2)."""
+        p = self.params
+        if not (math.isfinite(dl) and math.isfinite(dr)):
+            self._count.bad_input += 1
+            return None
+        u = models.wheels_to_step(dl, dr, p.wheelbase_m)
+        qu = models.step_covariance(
+            dl,
+            dr,
+            p.wheelbase_m,
+            p.wheel_noise_m_per_sqrt_m,
+            p.wheel_noise_floor_m,
+            p.turn_noise_fraction,
+        )
+        result = None
+        if dtheta_gyro is not None and math.isfinite(dtheta_gyro):
+            rg = gyro_var if gyro_var is not None else self._gyro_var(dtheta_gyro, 0.0)
+            s = qu[1, 1] + rg
+            nu = dtheta_gyro - u[1]
+            nis = nu * nu / s
+            self.last_nis["gyro"] = nis
+            accepted = nis <= self._gates[1]
+            if accepted:
+                k = qu[:, 1] / s
+                u = u + k * nu
+                qu = qu - np.outer(k, k) * s
+                qu = 0.5 * (qu + qu.T)
+                self._count.gyro_fused += 1
+            else:
+                self._count.gyro_rejected += 1
+            result = UpdateResult("gyro", accepted, nis, 1)
+        f, g = models.motion_jacobians(self.x, u, p.heading_point)
+        self.x = models.motion(self.x, u, p.heading_point)
+        self.P = f @ self.P @ f.T + g @ qu @ g.T
+        self.P = 0.5 * (self.P + self.P.T)
+        self._count.predictions += 1
+        return result
+
+    def _gyro_var(self, dtheta_gyro: float, dt_s: float) -> float:
+        p = self.params
+        return (
+            (p.gyro_gamma * dtheta_gyro) ** 2
+            + p.gyro_arw_rad_per_sqrt_s**2 * dt_s
+            + (p.gyro_bias_sigma_radps * dt_s) ** 2
+            + 1e-14
+        )
+
+    def update_position(self, z: np.ndarray, r: np.ndarray, kind: str = "gps") -> UpdateResult:
+        """Position measurement z (2,) with covariance R (2x2), gated."""
+        h, hj = models.position_measurement(self.x, self.params.gps_lever_m)
+        nu = np.asarray(z, float) - h
+        return self._update(kind, nu, hj, np.asarray(r, float))
+
+    def update_heading(self, theta: float, var: float) -> UpdateResult:
+        """Absolute heading measurement (rad, variance rad^2), gated."""
+        h, hj = models.heading_measurement(self.x)
+        nu = np.array([wrap_angle(theta - h[0])])
+        return self._update("heading", nu, hj, np.array([[var]]))
+
+    def _update(self, kind: str, nu: np.ndarray, hj: np.ndarray, r: np.ndarray) -> UpdateResult:
+        dof = nu.shape[0]
+        if not (np.all(np.isfinite(nu)) and np.all(np.isfinite(r))):
+            self._count.bad_input += 1
+            return UpdateResult(kind, False, math.nan, dof)
+        ph = self.P @ hj.T
+        s = hj @ ph + r
+        s_inv = np.linalg.inv(s)
+        nis = float(nu @ s_inv @ nu)
+        self.last_nis[kind] = nis
+        if nis > self._gates.get(dof, self.params.gate(dof)):
+            self._bump(f"{kind}_rejected")
+            return UpdateResult(kind, False, nis, dof)
+        k = ph @ s_inv
+        self.x = self.x + k @ nu
+        self.x[2] = wrap_angle(self.x[2])
+        ikh = np.eye(3) - k @ hj
+        pj = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form
+        pj = 0.5 * (pj + pj.T)
+        if not _is_pd(pj):
+            w, v = np.linalg.eigh(pj)
+            pj = (v * np.maximum(w, 1e-12)) @ v.T
+            pj = 0.5 * (pj + pj.T)
+            self._count.covariance_repairs += 1
+        self.P = pj
+        self._bump(f"{kind}_updates")
+        return UpdateResult(kind, True, nis, dof)
+
+    def _bump(self, name: str) -> None:
+        if hasattr(self._count, name):
+            setattr(self._count, name, getattr(self._count, name) + 1)
+        else:
+            self._count.extra[name] = self._count.extra.get(name, 0) + 1
+
+    # -- message-level ---------------------------------------------------------------
+    def feed(self, msg: object) -> PoseEstimate | None:
+        """RobotOdometry / GpsFix -> the estimate (None if nothing changed); GyroSample -> None."""
+        if isinstance(msg, RobotOdometry):
+            return self.feed_odometry(msg)
+        if isinstance(msg, GyroSample):
+            self.feed_gyro(msg)
+            return None
+        if isinstance(msg, GpsFix):
+            return self.feed_gps(msg)
+        raise TypeError(f"PoseEkf is fed RobotOdometry, GyroSample or GpsFix, not {type(msg)}")
+
+    def feed_gyro(self, msg: GyroSample) -> None:
+        self._count.gyro += 1
+        self._gyro.feed(msg)
+
+    def feed_odometry(self, msg: RobotOdometry) -> PoseEstimate | None:
+        """Predict over the motion since the previous odometry (fusing the gyro's step)."""
+        self._count.odometry += 1
+        step = self._odo.feed(msg)
+        gyro = self._gyro.take()
+        if step is None:
+            if self._odo.last is msg:  # first message or re-baseline after a jump
+                self.stamp_ns = max(self.stamp_ns, msg.stamp_ns)
+                return self.estimate()
+            return None
+        p = self.params
+        if p.learn_bias_at_rest:
+            self._bias.observe(step, gyro)
+        last_g = self._gyro.last_stamp_ns
+        stale = gyro is None or last_g is None or (step.t1_ns - last_g) * NS > p.gyro_timeout_s
+        if stale and not self.gyro_stale:
+            self._count.gyro_timeouts += 1
+        self.gyro_stale = stale
+        dg = rg = None
+        if not stale and gyro is not None:
+            if gyro.covered_s > 1.5 * step.dt_s + 0.05:
+                self._count.gyro_misaligned += 1
+            else:
+                dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
+                rg = self._gyro_var(dg, gyro.covered_s)
+        dl, dr = models.step_to_wheels(step.ds_m, step.dtheta_rad, p.wheelbase_m)
+        self.predict(float(dl), float(dr), dg, rg)
+        self.stamp_ns = step.t1_ns
+        self._speed_mps = abs(step.ds_m) / step.dt_s if step.dt_s > 0 else 0.0
+        gps_stale = self._last_gps_ns is None or (
+            (step.t1_ns - self._last_gps_ns) * NS > p.gps_timeout_s
+        )
+        if gps_stale and not self.gps_stale:
+            self._count.gps_timeouts += 1
+        self.gps_stale = gps_stale
+        return self.estimate()
+
+    def gps_measurement(self, msg: GpsFix) -> tuple[np.ndarray, np.ndarray] | None:
+        """(z, R) of a fix in local metres, or None when it has no usable position."""
+        if msg.mode < 2 or msg.quality == 0 or msg.east_m is None or msg.north_m is None:
+            return None
+        p = self.params
+        if msg.std_lat_m is not None and msg.std_lon_m is not None:
+            se, sn = msg.std_lon_m, msg.std_lat_m
+        elif msg.hdop is not None:
+            se = sn = msg.hdop * p.gps_uere_m / math.sqrt(2.0)
+        else:
+            return None
+        se, sn = max(se, p.gps_min_sigma_m), max(sn, p.gps_min_sigma_m)
+        z = np.array([msg.east_m, msg.north_m], dtype=float)
+        r = np.diag([se * se, sn * sn])
+        if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
+            return None
+        return z, r
+
+    def feed_gps(self, msg: GpsFix) -> PoseEstimate | None:
+        """Update on a fix; None if it was skipped (no fix, out of order, gated out)."""
+        self._count.gps += 1
+        meas = self.gps_measurement(msg)
+        if meas is None:
+            self._count.gps_no_fix += 1
+            return None
+        p = self.params
+        lag_s = (self.stamp_ns - msg.stamp_ns) * NS
+        if lag_s > p.gps_max_lag_s or (
+            self._last_gps_ns is not None and msg.stamp_ns <= self._last_gps_ns
+        ):
+            self._count.out_of_order_gps += 1
+            return None
+        self._last_gps_ns = msg.stamp_ns
+        self.gps_stale = False
+        z, r = meas
+        if not self._pose_set and p.init_from_gps:
+            lever = models.position_measurement(np.array([0.0, 0.0, self.x[2]]), p.gps_lever_m)[0]
+            self.x[:2] = z - lever
+            self.P[:2, :] = 0.0
+            self.P[:, :2] = 0.0
+            self.P[:2, :2] = r
+            self._pose_set = True
+            self._count.gps_init += 1
+            return self.estimate()
+        tau = p.gps_error_correlation_s
+        if tau > 0.0 and self._last_gps_used_ns is not None:
+            gap_s = (msg.stamp_ns - self._last_gps_used_ns) * NS
+            r = r * max(1.0, tau / max(gap_s, 1e-3))
+        d = self._speed_mps * abs(lag_s)
+        if d > 0.0:
+            r = r + np.eye(2) * d * d
+        res = self.update_position(z, r, "gps")
+        if not res.accepted:
+            return None
+        self._last_gps_used_ns = msg.stamp_ns
+        return self.estimate()
+
+    # -- diagnostics -----------------------------------------------------------------
+    def stale(self, now_ns: int) -> dict[str, bool]:
+        """Which inputs have been silent longer than their timeout at ``now_ns``."""
+        p = self.params
+        last_o = self._odo.last.stamp_ns if self._odo.last is not None else None
+        last_g = self._gyro.last_stamp_ns
+
+        def old(t: int | None, timeout: float) -> bool:
+            return t is None or (now_ns - t) * NS > timeout
+
+        return {
+            "odometry": old(last_o, p.odometry_timeout_s),
+            "gyro": old(last_g, p.gyro_timeout_s),
+            "gps": old(self._last_gps_ns, p.gps_timeout_s),
+        }
+
+    def counters(self) -> dict[str, int | float | bool]:
+        c = self._count
+        out: dict[str, int | float | bool] = {
+            k: v for k, v in vars(c).items() if isinstance(v, int) and not isinstance(v, bool)
+        }
+        out.update(c.extra)
+        out.update(
+            {
+                "out_of_order_odometry": self._odo.out_of_order,
+                "odometry_jumps": self._odo.jumps,
+                "out_of_order_gyro": self._gyro.out_of_order,
+                "gyro_discontinuities": self._gyro.discontinuities,
+                "gyro_stale": self.gyro_stale,
+                "gps_stale": self.gps_stale,
+                "gyro_bias_radps": self._bias.bias_radps,
+            }
+        )
+        return out
+
+
+def _is_pd(m: np.ndarray) -> bool:
+    try:
+        np.linalg.cholesky(m)
+    except np.linalg.LinAlgError:
+        return False
+    return True

@@ -1,0 +1,360 @@
+"""The Zenoh bus of one robot: publish, subscribe, liveliness and queries, all as msgs.
+
+Keys are ``hilnav/<robot>/<topic>`` (see INTERFACES.md), payloads the JSON of
+:func:`msgs.encode` with encoding ``application/json;hilnav.<Class>``; every sample a
+:class:`Bus` publishes carries its own robot name as the Zenoh attachment, so receivers
+know who sent it.
+
+One :class:`Bus` owns one Zenoh session opened from :class:`ZenohSettings`: peer mode,
+explicit ``listen``/``connect`` endpoints (``tcp/127.0.0.1:PORT``), multicast scouting OFF
+unless switched on, optionally a native Zenoh JSON5 file as the base, plus Zenoh's own
+access control, TLS and user/password sections passed through untouched. Those Zenoh
+settings are the real protection; on top, a bus with a ``fleet`` list accepts samples only
+from the robots it names (the key's robot and the sender must both be in the fleet):
+anything else is counted as ``foreign`` and dropped, anything that does not decode is
+counted as ``malformed`` and dropped. Callbacks run on Zenoh's threads; an exception in
+one is counted (``callback_errors``) and never reaches Zenoh.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import zenoh
+
+import msgs
+from msgs import (
+    AssociationReport,
+    DeviceDiagnostics,
+    GpsFix,
+    GroundTruth,
+    GyroSample,
+    HeadingEstimate,
+    IrScan,
+    OccupancyGridMsg,
+    PoseBox,
+    PoseEstimate,
+    RawBytes,
+    RobotInfo,
+    RobotOdometry,
+    VelocityCommand,
+)
+
+PREFIX = "hilnav"
+
+# Message class of every topic (INTERFACES.md); raw/<device> is RawBytes.
+TOPIC_TYPES: dict[str, type] = {
+    "odometry": RobotOdometry,
+    "gyro": GyroSample,
+    "gps": GpsFix,
+    "ir": IrScan,
+    "cmd_vel": VelocityCommand,
+    "heading": HeadingEstimate,
+    "pose": PoseEstimate,
+    "pose_box": PoseBox,
+    "map": OccupancyGridMsg,
+    "diagnostics": DeviceDiagnostics,
+    "truth": GroundTruth,
+    "info": RobotInfo,
+    "association": AssociationReport,
+}
+
+# What the queryables hilnav/<robot>/query/<name> answer with.
+QUERY_TYPES: dict[str, type] = {"pose": PoseEstimate, "map": OccupancyGridMsg, "info": RobotInfo}
+
+_BAD_NAME_CHARS = set("/*$?#@ ")
+
+
+def topic_type(topic: str) -> type | None:
+    """The message class of a topic name, or None if hilnav does not know it."""
+    if topic.startswith("raw/"):
+        return RawBytes
+    return TOPIC_TYPES.get(topic)
+
+
+def check_name(name: str, what: str = "robot name") -> str:
+    """A robot name must be one Zenoh key chunk: non-empty, no ``/ * $ ? # @`` or space."""
+    if not name or any(c in _BAD_NAME_CHARS for c in name):
+        raise ValueError(
+            f"{what} {name!r}: use letters, digits, '-' or '_' (it becomes one Zenoh key "
+            "chunk, hilnav/<robot>/...)"
+        )
+    return name
+
+
+def key(robot: str, topic: str) -> str:
+    return f"{PREFIX}/{robot}/{topic}"
+
+
+def free_tcp_port() -> int:
+    """A TCP port on 127.0.0.1 that is free right now (for tests and the demo)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass(frozen=True)
+class ZenohSettings:
+    """How to open the Zenoh session (the ``[zenoh]`` table of a robot config).
+
+    ``config_file`` is a native Zenoh JSON5 config used as the base; the fields below are
+    then applied on top (``mode``, ``listen``, ``connect`` only when set; scouting always).
+    ``access_control``, ``tls`` and ``usrpwd`` are Zenoh's own sections
+    (``access_control``, ``transport/link/tls``, ``transport/auth/usrpwd``), passed through
+    as given; ``extra`` maps any other Zenoh config path to its value.
+    """
+
+    mode: str = "peer"
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+    multicast_scouting: bool = False
+    gossip_scouting: bool = False
+    config_file: str | None = None
+    access_control: dict[str, Any] | None = None
+    tls: dict[str, Any] | None = None
+    usrpwd: dict[str, Any] | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def loopback(
+        cls, listen_port: int | None = None, connect_ports: Iterable[int] = ()
+    ) -> ZenohSettings:
+        """Peer on 127.0.0.1: listen on one port, connect to others (tests, the demo)."""
+        listen = (f"tcp/127.0.0.1:{listen_port}",) if listen_port else ()
+        return cls(listen=listen, connect=tuple(f"tcp/127.0.0.1:{p}" for p in connect_ports))
+
+    def to_zenoh(self) -> zenoh.Config:
+        """The zenoh.Config these settings describe."""
+        conf = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
+
+        def put(path: str, value: Any) -> None:
+            conf.insert_json5(path, json.dumps(value))
+
+        if self.mode and (not self.config_file or self.mode != "peer"):
+            put("mode", self.mode)
+        if self.listen or not self.config_file:
+            # no listen given: listen nowhere (Zenoh's default would be every interface)
+            put("listen/endpoints", list(self.listen))
+        if self.connect:
+            put("connect/endpoints", list(self.connect))
+        put("scouting/multicast/enabled", self.multicast_scouting)
+        put("scouting/gossip/enabled", self.gossip_scouting)
+        if self.access_control is not None:
+            put("access_control", self.access_control)
+        if self.tls is not None:
+            put("transport/link/tls", self.tls)
+        if self.usrpwd is not None:
+            put("transport/auth/usrpwd", self.usrpwd)
+        for path, value in self.extra.items():
+            put(path, value)
+        return conf
+
+
+@dataclass
+class BusStats:
+    """Counters of one bus (read them from any thread; they only grow)."""
+
+    published: int = 0
+    received: int = 0
+    malformed: int = 0
+    foreign: int = 0
+    callback_errors: int = 0
+    queries_answered: int = 0
+    last_problem: str = ""
+
+
+Callback = Callable[[str, Any], None]
+
+
+class Bus:
+    """One robot's view of the Zenoh bus (see the module docstring)."""
+
+    def __init__(
+        self,
+        robot: str,
+        zenoh_cfg: ZenohSettings | zenoh.Config | None = None,
+        fleet: Iterable[str] | None = None,
+    ) -> None:
+        self.robot = check_name(robot)
+        self.fleet: frozenset[str] | None = None
+        if fleet is not None:
+            self.fleet = frozenset(check_name(r, "fleet member") for r in fleet) | {robot}
+        self.stats = BusStats()
+        self._lock = threading.Lock()
+        cfg = zenoh_cfg if zenoh_cfg is not None else ZenohSettings()
+        if isinstance(cfg, ZenohSettings):
+            cfg = cfg.to_zenoh()
+        self.session = zenoh.open(cfg)
+        self._attachment = robot.encode()
+        self._publishers: dict[str, Any] = {}
+        self._declared: list[Any] = []
+        self._token: Any = None
+        self._closed = False
+
+    # -- helpers -----------------------------------------------------------------------
+    def _count(self, what: str, problem: str) -> None:
+        with self._lock:
+            setattr(self.stats, what, getattr(self.stats, what) + 1)
+            self.stats.last_problem = problem
+
+    def allowed(self, robot: str) -> bool:
+        return self.fleet is None or robot in self.fleet
+
+    # -- publishing ----------------------------------------------------------------------
+    def publish(self, topic: str, msg: Any) -> None:
+        """Put ``msg`` on ``hilnav/<own robot>/<topic>``."""
+        self.publish_to(self.robot, topic, msg)
+
+    def publish_to(self, robot: str, topic: str, msg: Any) -> None:
+        """Put ``msg`` on another robot's key (e.g. its ``cmd_vel``); sender = this bus."""
+        k = key(robot, topic)
+        pub = self._publishers.get(k)
+        if pub is None:
+            enc = zenoh.Encoding.APPLICATION_JSON.with_schema(msgs.schema_name(type(msg)))
+            pub = self.session.declare_publisher(k, encoding=enc)
+            self._publishers[k] = pub
+        pub.put(msgs.encode(msg), attachment=self._attachment)
+        with self._lock:
+            self.stats.published += 1
+
+    # -- subscribing ---------------------------------------------------------------------
+    def subscribe(self, robot: str, topic: str, callback: Callback) -> Any:
+        """Call ``callback(robot, msg)`` for each valid ``msg`` on ``hilnav/<robot>/<topic>``.
+
+        ``robot`` may be ``*`` (every robot). ``topic`` must be a hilnav topic (its class
+        decodes the payload). Samples from outside the fleet, or that do not decode, are
+        counted in :attr:`stats` and dropped.
+        """
+        cls = topic_type(topic)
+        if cls is None:
+            raise ValueError(f"topic {topic!r}: not a hilnav topic; known: {sorted(TOPIC_TYPES)}")
+        if robot != "*":
+            check_name(robot)
+        nparts = len(topic.split("/"))
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            parts = str(sample.key_expr).split("/")
+            src = parts[1] if len(parts) == 2 + nparts else ""
+            att = sample.attachment
+            sender = att.to_bytes().decode("utf-8", "replace") if att is not None else ""
+            if not src or not self.allowed(src) or not sender or not self.allowed(sender):
+                self._count("foreign", f"{sample.key_expr} from {sender or '?'}: not in fleet")
+                return
+            try:
+                msg = msgs.decode(cls, sample.payload.to_bytes())
+            except msgs.DecodeError as exc:
+                self._count("malformed", f"{sample.key_expr}: {exc}")
+                return
+            claimed = getattr(msg, "robot", None)
+            if isinstance(msg, PoseBox | GroundTruth) and claimed != src:
+                self._count("foreign", f"{sample.key_expr}: message claims robot {claimed!r}")
+                return
+            with self._lock:
+                self.stats.received += 1
+            try:
+                callback(src, msg)
+            except Exception as exc:  # noqa: BLE001 - a callback must never kill Zenoh's thread
+                self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
+
+        sub = self.session.declare_subscriber(key(robot, topic), on_sample)
+        self._declared.append(sub)
+        return sub
+
+    # -- liveliness ----------------------------------------------------------------------
+    def declare_alive(self) -> None:
+        """Declare the liveliness token ``hilnav/<robot>/alive`` (until :meth:`close`)."""
+        if self._token is None:
+            self._token = self.session.liveliness().declare_token(key(self.robot, "alive"))
+
+    def on_liveliness(self, callback: Callable[[str, bool], None]) -> Any:
+        """``callback(robot, alive)`` for fleet robots appearing (also those already alive)
+        and disappearing."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            parts = str(sample.key_expr).split("/")
+            if len(parts) != 3 or parts[2] != "alive":
+                self._count("malformed", f"{sample.key_expr}: not a liveliness key")
+                return
+            if not self.allowed(parts[1]):
+                self._count("foreign", f"{sample.key_expr}: not in fleet")
+                return
+            try:
+                callback(parts[1], sample.kind == zenoh.SampleKind.PUT)
+            except Exception as exc:  # noqa: BLE001
+                self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
+
+        sub = self.session.liveliness().declare_subscriber(
+            key("*", "alive"), on_sample, history=True
+        )
+        self._declared.append(sub)
+        return sub
+
+    # -- queries ------------------------------------------------------------------------
+    def queryable(self, name: str, handler: Callable[[], Any]) -> Any:
+        """Answer ``hilnav/<robot>/query/<name>`` with ``handler()`` (no reply if None)."""
+        k = key(self.robot, f"query/{name}")
+
+        def on_query(query: zenoh.Query) -> None:
+            try:
+                msg = handler()
+            except Exception as exc:  # noqa: BLE001
+                self._count("callback_errors", f"{k}: handler: {exc!r}")
+                query.reply_err(f"handler failed: {exc}".encode())
+                return
+            if msg is None:
+                query.reply_err(b"nothing yet")
+                return
+            enc = zenoh.Encoding.APPLICATION_JSON.with_schema(msgs.schema_name(type(msg)))
+            query.reply(k, msgs.encode(msg), encoding=enc, attachment=self._attachment)
+            with self._lock:
+                self.stats.queries_answered += 1
+
+        q = self.session.declare_queryable(k, on_query)
+        self._declared.append(q)
+        return q
+
+    def query(self, robot: str, name: str, timeout_s: float = 2.0, cls: type | None = None) -> Any:
+        """Ask ``hilnav/<robot>/query/<name>``; the decoded answer, or None (no answer,
+        an error reply, or a malformed one, which is counted)."""
+        cls = cls or QUERY_TYPES.get(name)
+        if cls is None:
+            raise ValueError(f"query {name!r}: unknown; give cls= or one of {sorted(QUERY_TYPES)}")
+        replies = self.session.get(key(check_name(robot), f"query/{name}"), timeout=timeout_s)
+        for reply in replies:  # bounded: the handler ends at the timeout
+            ok = reply.ok
+            if ok is None:
+                continue
+            try:
+                return msgs.decode(cls, ok.payload.to_bytes())
+            except msgs.DecodeError as exc:
+                self._count("malformed", f"query {name} from {robot}: {exc}")
+        return None
+
+    # -- shutdown -----------------------------------------------------------------------
+    def close(self) -> None:
+        """Undeclare the token, subscribers, queryables and publishers; close the session."""
+        if self._closed:
+            return
+        self._closed = True
+        for ent in [self._token, *self._declared, *self._publishers.values()]:
+            if ent is None:
+                continue
+            try:
+                ent.undeclare()
+            except zenoh.ZError:
+                pass
+        self._token = None
+        self._declared.clear()
+        self._publishers.clear()
+        self.session.close()
+
+    def __enter__(self) -> Bus:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,54 @@
+"""``hilnav analyze LOG [--out DIR]``: errors, drift, map quality, CP boxes; PNGs + JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from hilnav.errors import CliError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "analyze",
+        help="analyse a log: path error, heading drift, map match ratio, CP boxes; PNGs + JSON",
+        description="Compute what the log allows (path error against the truth or GPS, "
+        "heading drift per metre, map match ratio against the floor plan named in the log, CP "
+        "box containment and areas, diagnostics), write PNG plots and summary.json to DIR, "
+        "and print the JSON summary on the last line.",
+    )
+    p.add_argument("log", help="MCAP log (a truncated one is read up to its last record)")
+    p.add_argument("--out", help="output directory (default: <log without .mcap>-analysis)")
+    p.add_argument("--plan", help="floor plan for the map match ratio (default: from the log)")
+    p.add_argument("--no-plots", action="store_true", help="only the JSON summary")
+    p.set_defaults(func=run)
+
+
+def default_out(log: Path) -> Path:
+    return log.with_name(log.stem + "-analysis")
+
+
+def run(args: argparse.Namespace) -> int:
+    from hilnav.log.analyze import analyze
+
+    log = Path(args.log)
+    if not log.is_file():
+        raise CliError(f"no such log file: {log}")
+    out = Path(args.out) if args.out else default_out(log)
+    try:
+        result = analyze(log, plan=args.plan)
+    except ValueError as exc:
+        raise CliError(f"{log}: {exc}") from None
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    if not args.no_plots:
+        from hilnav.log.plots import write_plots
+
+        files = [str(f) for f in write_plots(result, out)]
+    summary = dict(result.summary)
+    summary["plots"] = files
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
+    summary["summary_json"] = str(out / "summary.json")
+    print(json.dumps(summary, sort_keys=True))
+    return 0

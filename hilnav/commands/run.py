@@ -1,0 +1,61 @@
+"""``hilnav run [--config FILE]``: the robot daemon until SIGINT/SIGTERM (or --seconds)."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from hilnav.config import ConfigError, load_config, summary
+from hilnav.errors import CliError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "run",
+        help="run the robot daemon (devices, services, Zenoh, MCAP log)",
+        description="Run the daemon of one robot: a reader thread per device, the services, "
+        "publishing on Zenoh under hilnav/<robot>/<topic>, logging every message to one MCAP "
+        "file. Without --config: the embedded defaults, a simulated Pioneer with all sensors "
+        "(the emulated devices are started as a subprocess). SIGINT/SIGTERM stop the motors, "
+        "close the log and exit 0.",
+    )
+    p.add_argument("--config", help="robot TOML file (see: hilnav config example)")
+    p.add_argument("--log", help="MCAP file to write (default: [log] dir/<robot>-<UTC>.mcap)")
+    p.add_argument("--seconds", type=float, default=None, help="stop after S seconds")
+    p.add_argument("--quiet", action="store_true", help="do not print the config summary")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from hilnav.daemon import Daemon, DaemonError
+
+    try:
+        cfg = load_config(args.config)
+    except ConfigError as exc:
+        raise CliError(str(exc)) from None
+    daemon = Daemon(cfg, log_path=args.log)
+
+    def on_signal(signum, frame):  # noqa: ANN001
+        daemon.request_stop()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    try:
+        daemon.start()
+    except DaemonError as exc:
+        raise CliError(str(exc)) from None
+    if not args.quiet:
+        print(summary(daemon.cfg), file=sys.stderr)
+    print(f"hilnav run: {cfg.name} up; log {daemon.log_path}", flush=True)
+    try:
+        daemon.wait(args.seconds)
+    finally:
+        daemon.stop()
+    s = daemon.stats
+    print(
+        f"hilnav run: stopped; {s.processed} messages, {s.logged} logged, {s.dropped} dropped; "
+        f"log {daemon.log_path}",
+        flush=True,
+    )
+    return 0

@@ -1,0 +1,1 @@
+"""MCAP logs: writer (with Foxglove views), reader, info, recovery, replay and analysis."""

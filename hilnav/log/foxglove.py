@@ -1,0 +1,412 @@
+"""Foxglove views of hilnav messages: pure conversions to Foxglove's well-known JSON schemas.
+
+The Foxglove app draws a message without a plugin when its channel's schema is named as one
+of Foxglove's (``foxglove.PoseInFrame`` ...) and its JSON has those fields: times are
+``{"sec", "nsec"}``, bytes are base64, orientations are quaternions. :func:`views` turns one
+native message into zero or more such views, each ``(topic, schema_name, dict)``:
+
+| native topic (``/<robot>/...``) | view | view topic |
+|---|---|---|
+| ``pose`` (PoseEstimate)     | foxglove.PoseInFrame, foxglove.FrameTransform map->odom | ``/<robot>/fox/pose``, ``/tf`` |
+| ``heading`` (HeadingEstimate)| foxglove.PoseInFrame        | ``/<robot>/fox/heading`` |
+| ``truth`` (GroundTruth)     | foxglove.PoseInFrame        | ``/<robot>/fox/truth`` |
+| ``odometry`` (RobotOdometry)| foxglove.FrameTransform odom->base_link | ``/tf`` |
+| ``gps`` (GpsFix with lat/lon)| foxglove.LocationFix       | ``/<robot>/fox/gps`` |
+| ``pose_box`` (PoseBox)      | foxglove.SceneUpdate: a cube and two heading arrows | ``/<robot>/fox/pose_box`` |
+| landmarks (LandmarkMap: ``xs``/``ys``) | foxglove.SceneUpdate: spheres (3-sigma size) | ``/<robot>/fox/<topic>`` |
+
+The map (``msgs.OccupancyGridMsg``) already *is* a ``foxglove.Grid`` and needs no view.
+map->odom needs the latest odometry pose: :class:`ViewState` keeps it (pure, no clock).
+:data:`SCHEMAS` holds the JSON Schemas written into the log for each view schema.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from msgs import GpsFix, GroundTruth, HeadingEstimate, Pose2D, PoseBox, PoseEstimate, RobotOdometry
+
+View = tuple[str, str, dict[str, Any]]
+
+TF_TOPIC = "/tf"
+VIEW_PREFIX = "fox"
+
+# ---------------------------------------------------------------------------------------
+# JSON Schemas of the Foxglove messages used here (field names and types as Foxglove's).
+_NUM = {"type": "number"}
+
+
+def _obj(title: str, props: dict[str, Any]) -> dict[str, Any]:
+    return {"title": title, "type": "object", "properties": props, "required": list(props)}
+
+
+_TIME = {
+    "type": "object",
+    "title": "time",
+    "properties": {
+        "sec": {"type": "integer", "minimum": 0},
+        "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999},
+    },
+}
+_DURATION = {
+    "type": "object",
+    "title": "duration",
+    "properties": {
+        "sec": {"type": "integer"},
+        "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999},
+    },
+}
+_VEC3 = _obj("foxglove.Vector3", {"x": _NUM, "y": _NUM, "z": _NUM})
+_QUAT = _obj("foxglove.Quaternion", {"x": _NUM, "y": _NUM, "z": _NUM, "w": _NUM})
+_POSE = _obj("foxglove.Pose", {"position": _VEC3, "orientation": _QUAT})
+_COLOR = _obj("foxglove.Color", {"r": _NUM, "g": _NUM, "b": _NUM, "a": _NUM})
+_KV = _obj("foxglove.KeyValuePair", {"key": {"type": "string"}, "value": {"type": "string"}})
+_STR = {"type": "string"}
+
+
+def _arr(items: dict[str, Any]) -> dict[str, Any]:
+    return {"type": "array", "items": items}
+
+
+_POSE_IN_FRAME = _obj("foxglove.PoseInFrame", {"timestamp": _TIME, "frame_id": _STR, "pose": _POSE})
+_FRAME_TRANSFORM = _obj(
+    "foxglove.FrameTransform",
+    {
+        "timestamp": _TIME,
+        "parent_frame_id": _STR,
+        "child_frame_id": _STR,
+        "translation": _VEC3,
+        "rotation": _QUAT,
+    },
+)
+_LOCATION_FIX = _obj(
+    "foxglove.LocationFix",
+    {
+        "timestamp": _TIME,
+        "frame_id": _STR,
+        "latitude": _NUM,
+        "longitude": _NUM,
+        "altitude": _NUM,
+        "position_covariance": {"type": "array", "items": _NUM, "minItems": 9, "maxItems": 9},
+        "position_covariance_type": {
+            "title": "foxglove.PositionCovarianceType",
+            "oneOf": [
+                {"title": "UNKNOWN", "const": 0},
+                {"title": "APPROXIMATED", "const": 1},
+                {"title": "DIAGONAL_KNOWN", "const": 2},
+                {"title": "KNOWN", "const": 3},
+            ],
+        },
+    },
+)
+_CUBE = _obj("foxglove.CubePrimitive", {"pose": _POSE, "size": _VEC3, "color": _COLOR})
+_SPHERE = _obj("foxglove.SpherePrimitive", {"pose": _POSE, "size": _VEC3, "color": _COLOR})
+_ARROW = _obj(
+    "foxglove.ArrowPrimitive",
+    {
+        "pose": _POSE,
+        "shaft_length": _NUM,
+        "shaft_diameter": _NUM,
+        "head_length": _NUM,
+        "head_diameter": _NUM,
+        "color": _COLOR,
+    },
+)
+_ENTITY = {
+    "title": "foxglove.SceneEntity",
+    "type": "object",
+    "properties": {
+        "timestamp": _TIME,
+        "frame_id": _STR,
+        "id": _STR,
+        "lifetime": _DURATION,
+        "frame_locked": {"type": "boolean"},
+        "metadata": _arr(_KV),
+        "arrows": _arr(_ARROW),
+        "cubes": _arr(_CUBE),
+        "spheres": _arr(_SPHERE),
+        "cylinders": _arr({"type": "object"}),
+        "lines": _arr({"type": "object"}),
+        "triangles": _arr({"type": "object"}),
+        "texts": _arr({"type": "object"}),
+        "models": _arr({"type": "object"}),
+    },
+}
+_DELETION = _obj(
+    "foxglove.SceneEntityDeletion",
+    {
+        "timestamp": _TIME,
+        "type": {
+            "title": "foxglove.SceneEntityDeletionType",
+            "oneOf": [{"title": "MATCHING_ID", "const": 0}, {"title": "ALL", "const": 1}],
+        },
+        "id": _STR,
+    },
+)
+_SCENE_UPDATE = {
+    "title": "foxglove.SceneUpdate",
+    "type": "object",
+    "properties": {"deletions": _arr(_DELETION), "entities": _arr(_ENTITY)},
+}
+
+SCHEMAS: dict[str, dict[str, Any]] = {
+    "foxglove.PoseInFrame": _POSE_IN_FRAME,
+    "foxglove.FrameTransform": _FRAME_TRANSFORM,
+    "foxglove.LocationFix": _LOCATION_FIX,
+    "foxglove.SceneUpdate": _SCENE_UPDATE,
+}
+
+# ---------------------------------------------------------------------------------------
+# Conversions.
+
+BOX_COLOR = {"r": 0.2, "g": 0.5, "b": 1.0, "a": 0.35}
+ARROW_COLOR = {"r": 0.1, "g": 0.3, "b": 0.9, "a": 0.9}
+LANDMARK_COLOR = {"r": 0.1, "g": 0.7, "b": 0.2, "a": 0.8}
+# GPS user-equivalent range error (m) turning an HDOP into an approximate std deviation.
+GPS_UERE_M = 5.0
+
+
+def time_of(stamp_ns: int) -> dict[str, int]:
+    """A Foxglove time {sec, nsec} of a nanosecond stamp (clamped at 0: no negative times)."""
+    sec, nsec = divmod(max(0, int(stamp_ns)), 1_000_000_000)
+    return {"sec": sec, "nsec": nsec}
+
+
+def quaternion_z(theta: float) -> dict[str, float]:
+    """The quaternion of a rotation by ``theta`` about +z."""
+    return {"x": 0.0, "y": 0.0, "z": math.sin(theta / 2.0), "w": math.cos(theta / 2.0)}
+
+
+def pose3(p: Pose2D, z: float = 0.0) -> dict[str, Any]:
+    return {"position": {"x": p.x, "y": p.y, "z": z}, "orientation": quaternion_z(p.theta)}
+
+
+def pose_in_frame(stamp_ns: int, frame: str, p: Pose2D) -> dict[str, Any]:
+    return {"timestamp": time_of(stamp_ns), "frame_id": frame, "pose": pose3(p)}
+
+
+def frame_transform(stamp_ns: int, parent: str, child: str, p: Pose2D) -> dict[str, Any]:
+    """Child frame's pose ``p`` in the parent frame."""
+    return {
+        "timestamp": time_of(stamp_ns),
+        "parent_frame_id": parent,
+        "child_frame_id": child,
+        "translation": {"x": p.x, "y": p.y, "z": 0.0},
+        "rotation": quaternion_z(p.theta),
+    }
+
+
+def compose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """a ⊕ b: the pose b (expressed in a's frame) in a's parent frame."""
+    c, s = math.cos(a.theta), math.sin(a.theta)
+    return Pose2D(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, _wrap(a.theta + b.theta))
+
+
+def inverse(a: Pose2D) -> Pose2D:
+    c, s = math.cos(a.theta), math.sin(a.theta)
+    return Pose2D(-c * a.x - s * a.y, s * a.x - c * a.y, _wrap(-a.theta))
+
+
+def _wrap(a: float) -> float:
+    w = math.remainder(a, 2.0 * math.pi)
+    return math.pi if w == -math.pi else w
+
+
+def location_fix(fix: GpsFix, frame: str = "gps") -> dict[str, Any] | None:
+    """foxglove.LocationFix of a fix with a position (None without lat/lon).
+
+    Covariance (ENU, m^2): per-axis std deviations when the receiver gave them
+    (DIAGONAL_KNOWN), else HDOP x UERE (APPROXIMATED), else UNKNOWN zeros.
+    """
+    if fix.lat_deg is None or fix.lon_deg is None:
+        return None
+    cov = [0.0] * 9
+    ctype = 0
+    if fix.std_lat_m is not None and fix.std_lon_m is not None:
+        cov[0], cov[4] = fix.std_lon_m**2, fix.std_lat_m**2
+        cov[8] = (fix.std_alt_m if fix.std_alt_m is not None else 2.0 * fix.std_lat_m) ** 2
+        ctype = 2
+    elif fix.hdop is not None:
+        h = (fix.hdop * GPS_UERE_M) ** 2
+        v = ((fix.vdop if fix.vdop is not None else 2.0 * fix.hdop) * GPS_UERE_M) ** 2
+        cov[0] = cov[4] = h
+        cov[8] = v
+        ctype = 1
+    alt = fix.alt_msl_m if fix.alt_msl_m is not None else 0.0
+    return {
+        "timestamp": time_of(fix.stamp_ns),
+        "frame_id": frame,
+        "latitude": fix.lat_deg,
+        "longitude": fix.lon_deg,
+        "altitude": alt,
+        "position_covariance": cov,
+        "position_covariance_type": ctype,
+    }
+
+
+def _entity(stamp_ns: int, frame: str, ident: str, **prims: list[dict[str, Any]]) -> dict:
+    ent: dict[str, Any] = {
+        "timestamp": time_of(stamp_ns),
+        "frame_id": frame,
+        "id": ident,
+        "lifetime": {"sec": 0, "nsec": 0},
+        "frame_locked": False,
+        "metadata": [],
+        "arrows": [],
+        "cubes": [],
+        "spheres": [],
+        "cylinders": [],
+        "lines": [],
+        "triangles": [],
+        "texts": [],
+        "models": [],
+    }
+    ent.update(prims)
+    return ent
+
+
+def pose_box_scene(box: PoseBox) -> dict[str, Any]:
+    """foxglove.SceneUpdate of a CP box: a flat cube over x/y and arrows at theta lo/hi."""
+    ident = f"{box.robot}/pose_box"
+    if box.x.empty or box.y.empty or box.theta.empty:
+        deletion = {"timestamp": time_of(box.stamp_ns), "type": 0, "id": ident}
+        return {"deletions": [deletion], "entities": []}
+    cx, cy = (box.x.lo + box.x.hi) / 2.0, (box.y.lo + box.y.hi) / 2.0
+    wx, wy = max(box.x.width, 1e-3), max(box.y.width, 1e-3)
+    cube = {
+        "pose": pose3(Pose2D(cx, cy, 0.0), z=0.01),
+        "size": {"x": wx, "y": wy, "z": 0.02},
+        "color": BOX_COLOR,
+    }
+    length = max(0.3, 0.5 * max(wx, wy))
+    arrows = [
+        {
+            "pose": pose3(Pose2D(cx, cy, th), z=0.03),
+            "shaft_length": 0.8 * length,
+            "shaft_diameter": 0.02,
+            "head_length": 0.2 * length,
+            "head_diameter": 0.06,
+            "color": ARROW_COLOR,
+        }
+        for th in (box.theta.lo, box.theta.hi)
+    ]
+    return {
+        "deletions": [],
+        "entities": [_entity(box.stamp_ns, box.frame, ident, cubes=[cube], arrows=arrows)],
+    }
+
+
+def landmark_scene(stamp_ns: int, frame: str, ident: str, points: list[tuple]) -> dict:
+    """foxglove.SceneUpdate with one sphere per landmark (x, y[, diameter])."""
+    spheres = []
+    for p in points:
+        d = float(p[2]) if len(p) > 2 and p[2] else 0.3
+        spheres.append(
+            {
+                "pose": pose3(Pose2D(float(p[0]), float(p[1]), 0.0), z=d / 2.0),
+                "size": {"x": d, "y": d, "z": d},
+                "color": LANDMARK_COLOR,
+            }
+        )
+    return {"deletions": [], "entities": [_entity(stamp_ns, frame, ident, spheres=spheres)]}
+
+
+def _landmark_points(msg: Any) -> list[tuple] | None:
+    """(x, y, size) per landmark of a map-frame landmark message, else None.
+
+    Understood: ``xs``/``ys`` tuples (msgs.landmarks.LandmarkMap; the sphere's size is the
+    3-sigma extent of ``cov_xx``/``cov_yy`` when present), or ``landmarks`` items with
+    ``x``/``y`` (or ``x_m``/``y_m``).
+    """
+    xs, ys = getattr(msg, "xs", None), getattr(msg, "ys", None)
+    if isinstance(xs, tuple | list) and isinstance(ys, tuple | list) and len(xs) == len(ys):
+        cxx = getattr(msg, "cov_xx", ()) or ()
+        cyy = getattr(msg, "cov_yy", ()) or ()
+        pts = []
+        for i, (x, y) in enumerate(zip(xs, ys, strict=True)):
+            size = None
+            if i < len(cxx) and i < len(cyy):
+                size = 6.0 * math.sqrt(max(float(cxx[i]), float(cyy[i]), 0.0))
+            pts.append((float(x), float(y), max(size, 0.2) if size is not None else None))
+        return pts
+    lms = getattr(msg, "landmarks", None)
+    if not isinstance(lms, tuple | list):
+        return None
+    pts = []
+    for lm in lms:
+        x, y = getattr(lm, "x", None), getattr(lm, "y", None)
+        if x is None or y is None:
+            x, y = getattr(lm, "x_m", None), getattr(lm, "y_m", None)
+        if not isinstance(x, int | float) or not isinstance(y, int | float):
+            return None  # landmarks not in map coordinates (e.g. range/bearing): no view
+        pts.append((x, y, getattr(lm, "diameter_m", None)))
+    return pts
+
+
+@dataclass
+class ViewState:
+    """What the views remember between messages: the latest odometry pose per robot."""
+
+    odom: dict[str, Pose2D] = field(default_factory=dict)
+
+
+def split_topic(topic: str) -> tuple[str, str]:
+    """``/<robot>/<name...>`` -> (robot, name); ("", topic) when there is no robot part."""
+    parts = topic.strip("/").split("/", 1)
+    if len(parts) == 2:
+        return parts[0], parts[1]
+    return "", parts[0]
+
+
+def views(topic: str, msg: Any, state: ViewState | None = None) -> list[View]:
+    """Foxglove views of the message ``msg`` logged on ``topic`` (may be empty)."""
+    robot, name = split_topic(topic)
+    base = f"/{robot}/{VIEW_PREFIX}" if robot else f"/{VIEW_PREFIX}"
+    out: list[View] = []
+    if isinstance(msg, PoseEstimate):
+        out.append(
+            (
+                f"{base}/{name}",
+                "foxglove.PoseInFrame",
+                pose_in_frame(msg.stamp_ns, msg.frame, msg.pose),
+            )
+        )
+        odom = state.odom.get(robot) if state is not None else None
+        if odom is not None and msg.frame == "map":
+            map_odom = compose(msg.pose, inverse(odom))
+            out.append(
+                (
+                    TF_TOPIC,
+                    "foxglove.FrameTransform",
+                    frame_transform(msg.stamp_ns, "map", "odom", map_odom),
+                )
+            )
+    elif isinstance(msg, HeadingEstimate | GroundTruth):
+        view = pose_in_frame(msg.stamp_ns, "map", msg.pose)
+        out.append((f"{base}/{name}", "foxglove.PoseInFrame", view))
+    elif isinstance(msg, RobotOdometry):
+        if state is not None:
+            state.odom[robot] = msg.pose
+        out.append(
+            (
+                TF_TOPIC,
+                "foxglove.FrameTransform",
+                frame_transform(msg.stamp_ns, "odom", "base_link", msg.pose),
+            )
+        )
+    elif isinstance(msg, GpsFix):
+        fix = location_fix(msg)
+        if fix is not None:
+            out.append((f"{base}/{name}", "foxglove.LocationFix", fix))
+    elif isinstance(msg, PoseBox):
+        out.append((f"{base}/{name}", "foxglove.SceneUpdate", pose_box_scene(msg)))
+    else:
+        pts = _landmark_points(msg)
+        if pts is not None:
+            stamp = int(getattr(msg, "stamp_ns", 0) or 0)
+            frame = str(getattr(msg, "frame", "map") or "map")
+            scene = landmark_scene(stamp, frame, f"{robot}/{name}", pts)
+            out.append((f"{base}/{name}", "foxglove.SceneUpdate", scene))
+    return out

@@ -1,0 +1,269 @@
+"""MCAP log writer: every message as hilnav JSON, plus Foxglove views, crash-safe.
+
+One channel per (topic, schema). A native message goes on its topic with schema
+``msgs.schema_name(cls)`` (``hilnav.<Class>``, JSON Schema from ``msgs.json_schema``) and
+JSON encoding (``msgs.encode``); where a Foxglove schema fits, :mod:`hilnav.log.foxglove`
+adds a view on its own channel, so the Foxglove app draws the log with no plugin.
+
+Crash safety: the mcap library keeps the open chunk in memory until it reaches
+``chunk_size``. Here the chunk is finished and written out (``Writer.flush``) whenever
+``flush_every_s`` of log time has passed since the chunk's first message and, unless
+``wall_clock=False``, also by a timer thread every ``flush_every_s`` of wall time. A killed
+process therefore loses at most about ``flush_every_s`` of messages; ``hilnav log recover``
+turns the truncated file back into a valid one. With ``wall_clock=False`` the chunk
+boundaries depend only on the messages, so the same input gives the same bytes (replay).
+
+Thread-safe: one lock around every call.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from mcap.writer import CompressionType, Writer
+
+import msgs
+from hilnav.log import foxglove
+
+COMPRESSIONS = {
+    "zstd": CompressionType.ZSTD,
+    "lz4": CompressionType.LZ4,
+    "none": CompressionType.NONE,
+}
+METADATA_NAME = "hilnav"
+PROFILE = ""
+LIBRARY = "hilnav"
+
+
+def _dumps(obj: Any) -> bytes:
+    return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+class LogWriter:
+    """Write hilnav messages to one MCAP file (context manager).
+
+    ``write(topic, msg, log_time_ns, publish_time_ns=None)`` logs ``msg`` on ``topic`` (an
+    MCAP topic such as ``/r1/pose``) and its Foxglove views. ``metadata`` (str -> str) is
+    written as the MCAP metadata record "hilnav" (robot, plan, seed, config ...).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        compression: str = "zstd",
+        flush_every_s: float = 1.0,
+        chunk_size: int = 1024 * 1024,
+        metadata: dict[str, str] | None = None,
+        foxglove_views: bool = True,
+        wall_clock: bool = True,
+    ) -> None:
+        if compression not in COMPRESSIONS:
+            raise ValueError(
+                f"compression {compression!r}: choose one of {', '.join(COMPRESSIONS)}"
+            )
+        if flush_every_s <= 0:
+            raise ValueError("flush_every_s must be > 0")
+        self.path = Path(path)
+        self._flush_ns = int(flush_every_s * 1e9)
+        self._flush_s = float(flush_every_s)
+        self._views = foxglove_views
+        self._view_state = foxglove.ViewState()
+        self._lock = threading.Lock()
+        self._stream = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._writer = Writer(
+            self._stream, chunk_size=chunk_size, compression=COMPRESSIONS[compression]
+        )
+        self._writer.start(profile=PROFILE, library=LIBRARY)
+        self._schemas: dict[tuple[str, str, bytes], int] = {}
+        self._channels: dict[tuple[str, str, str], int] = {}
+        self._seq: dict[int, int] = {}
+        self._pending = 0  # messages in the open chunk
+        self._chunk_first_ns: int | None = None
+        self._last_flush_wall = time.monotonic()
+        self._closed = False
+        self.messages_written = 0
+        self.views_skipped = 0  # views not written (non-finite values)
+        self.bytes_written = 0
+        if metadata:
+            self.add_metadata(METADATA_NAME, metadata)
+        self._stream.flush()
+        self._stop = threading.Event()
+        self._timer: threading.Thread | None = None
+        if wall_clock:
+            self._timer = threading.Thread(target=self._tick, name="mcap-flush", daemon=True)
+            self._timer.start()
+
+    # -- context manager ---------------------------------------------------------------
+    def __enter__(self) -> LogWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # -- registration ------------------------------------------------------------------
+    def _schema_id(self, name: str, encoding: str, data: bytes) -> int:
+        key = (name, encoding, data)
+        sid = self._schemas.get(key)
+        if sid is None:
+            sid = self._writer.register_schema(name=name, encoding=encoding, data=data)
+            self._schemas[key] = sid
+        return sid
+
+    def _channel_id(
+        self,
+        topic: str,
+        schema_name: str,
+        schema: dict[str, Any] | bytes | None,
+        schema_encoding: str = "jsonschema",
+        message_encoding: str = "json",
+    ) -> int:
+        key = (topic, schema_name, message_encoding)
+        cid = self._channels.get(key)
+        if cid is None:
+            if isinstance(schema, dict):
+                data, enc = _dumps(schema), schema_encoding
+            elif isinstance(schema, bytes | bytearray) and schema:
+                data, enc = bytes(schema), schema_encoding
+            else:
+                data, enc = b"", ""
+            sid = self._schema_id(schema_name, enc, data)
+            cid = self._writer.register_channel(
+                topic=topic, message_encoding=message_encoding, schema_id=sid
+            )
+            self._channels[key] = cid
+            self._seq[cid] = 0
+        return cid
+
+    # -- writing -------------------------------------------------------------------------
+    def _add(self, cid: int, data: bytes, log_ns: int, pub_ns: int) -> None:
+        seq = self._seq[cid]
+        self._seq[cid] = seq + 1
+        if self._chunk_first_ns is None:
+            self._chunk_first_ns = log_ns
+        elif abs(log_ns - self._chunk_first_ns) >= self._flush_ns:
+            self._flush_locked()
+            self._chunk_first_ns = log_ns
+        self._writer.add_message(
+            channel_id=cid, log_time=log_ns, data=data, publish_time=pub_ns, sequence=seq
+        )
+        self._pending += 1
+        self.messages_written += 1
+        self.bytes_written += len(data)
+
+    def write(
+        self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None:
+        """Log ``msg`` (a msgs dataclass) on ``topic`` and its Foxglove views."""
+        cls = type(msg)
+        name = msgs.schema_name(cls)
+        data = msgs.encode(msg)
+        log_ns = int(log_time_ns)
+        pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
+        with self._lock:
+            self._check_open()
+            cid = self._channels.get((topic, name, "json"))
+            if cid is None:
+                cid = self._channel_id(topic, name, msgs.json_schema(cls))
+            self._add(cid, data, log_ns, pub_ns)
+            if self._views:
+                self._write_views(topic, msg, log_ns, pub_ns)
+
+    def _write_views(self, topic: str, msg: Any, log_ns: int, pub_ns: int) -> None:
+        try:
+            views = foxglove.views(topic, msg, self._view_state)
+        except (TypeError, ValueError, AttributeError):
+            self.views_skipped += 1  # an odd message: the native record is what matters
+            return
+        for vtopic, vschema, body in views:
+            try:
+                data = _dumps(body)
+            except ValueError:  # NaN/inf (a diverged filter): Foxglove JSON cannot hold it
+                self.views_skipped += 1
+                continue
+            vcid = self._channels.get((vtopic, vschema, "json"))
+            if vcid is None:
+                vcid = self._channel_id(vtopic, vschema, foxglove.SCHEMAS.get(vschema))
+            self._add(vcid, data, log_ns, pub_ns)
+
+    def write_encoded(
+        self,
+        topic: str,
+        schema_name: str,
+        schema: dict[str, Any] | bytes | None,
+        data: bytes,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        *,
+        schema_encoding: str = "jsonschema",
+        message_encoding: str = "json",
+    ) -> None:
+        """Log an already encoded payload (pass-through of records we do not decode).
+
+        ``schema`` is a JSON Schema (dict), the schema record's bytes (with
+        ``schema_encoding``), or None for a schema-less channel."""
+        log_ns = int(log_time_ns)
+        pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
+        with self._lock:
+            self._check_open()
+            cid = self._channel_id(topic, schema_name, schema, schema_encoding, message_encoding)
+            self._add(cid, bytes(data), log_ns, pub_ns)
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """An MCAP metadata record (written at once, outside the chunks)."""
+        with self._lock:
+            self._check_open()
+            self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+            self._stream.flush()
+
+    # -- flushing and closing -----------------------------------------------------------
+    def _flush_locked(self) -> None:
+        if self._pending:
+            self._writer.flush()
+            self._pending = 0
+        self._chunk_first_ns = None
+        self._last_flush_wall = time.monotonic()
+
+    def flush(self) -> None:
+        """Finish the open chunk and hand everything to the OS now."""
+        with self._lock:
+            if not self._closed:
+                self._flush_locked()
+
+    def _tick(self) -> None:
+        period = self._flush_s / 4.0
+        while not self._stop.wait(period):
+            with self._lock:
+                if self._closed:
+                    return
+                if (
+                    self._pending
+                    and time.monotonic() - self._last_flush_wall >= self._flush_s * 0.75
+                ):
+                    self._flush_locked()
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise ValueError(f"log {self.path} is closed")
+
+    def close(self) -> None:
+        """Write the summary (indexes, statistics) and close the file. Idempotent."""
+        self._stop.set()
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._writer.finish()
+            self._stream.close()
+        if self._timer is not None and self._timer is not threading.current_thread():
+            self._timer.join(timeout=2.0)

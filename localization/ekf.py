@@ -1,0 +1,232 @@
+"""EKF localization of ekf-vs-cp.txt eq. (3)-(4), for the comparison with CP, and the
+integrity monitor the paper leaves as future work (run EKF and CP together).
+
+State s = (x, y, theta) (theta kept continuous), input the wheel displacements
+u = (dSr, dSl) with per-wheel noise sigma = abs + rel * |dS| (eq. (1)-(2) through
+``localization.odometry``); measurements: GPS position (h = (x, y)) and a heading
+(h = theta, e.g. the gyro's angle). Prediction ``P = A P A^T + W Q W^T``; update with
+the Kalman gain, Joseph form for symmetry. The 3-sigma box the paper compares with CP
+is ``mean +/- 3 sqrt(diag P)``.
+
+Message-level API::
+
+    ekf = EkfLocalizer(EkfConfig(...), initial=PoseEstimate | None)
+    ekf.feed_odometry(RobotOdometry) / feed_gyro(GyroSample) / feed_gps(GpsFix)
+        -> PoseEstimate | None
+    ekf.estimate() -> PoseEstimate ; ekf.box(n_sigma=3) -> PoseBox
+
+:class:`IntegrityMonitor` takes the EKF estimate and the CP box of the same step, flags
+an integrity alarm when the estimate leaves the box, and offers the estimate clipped to
+the box (a guaranteed-consistent point).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from localization.odometry import motion, motion_jacobians, wheels_from_poses
+from msgs import (
+    GpsFix,
+    GyroSample,
+    Interval,
+    Pose2D,
+    PoseBox,
+    PoseEstimate,
+    RobotOdometry,
+    wrap_angle,
+)
+
+
+@dataclass(frozen=True)
+class EkfConfig:
+    """Standard deviations (1 sigma) of the noises; defaults match CPConfig's bounds
+    for uniform errors (sigma = bound / sqrt(3))."""
+
+    wheelbase_m: float = 0.33
+    wheel_sigma_abs_m: float = 0.0005 / math.sqrt(3.0)
+    wheel_sigma_rel: float = 0.01 / math.sqrt(3.0)
+    gps_sigma_m: float = 2.0 / math.sqrt(3.0)
+    gyro_sigma_rad: float = math.radians(1.0) / math.sqrt(3.0)
+    gyro_offset_rad: float = 0.0
+    kappa: float = 0.5
+    chord: bool = True
+    init_sigma: tuple[float, float, float] = (10.0, 10.0, math.pi)
+    min_gps_mode: int = 2
+
+
+class EkfLocalizer:
+    """Extended Kalman filter on (x, y, theta); see the module docstring."""
+
+    def __init__(
+        self,
+        config: EkfConfig | None = None,
+        initial: PoseEstimate | None = None,
+        source: str = "ekf",
+    ) -> None:
+        self.cfg = config or EkfConfig()
+        self.source = source
+        if initial is None:
+            self.s = np.zeros(3)
+            self.P = np.diag(np.square(self.cfg.init_sigma))
+        else:
+            self.s = np.array([initial.pose.x, initial.pose.y, initial.pose.theta])
+            self.P = np.array(initial.covariance, dtype=float).reshape(3, 3)
+        self.stamp_ns = 0 if initial is None else initial.stamp_ns
+        self._last_odom: RobotOdometry | None = None
+        self.skipped: dict[str, int] = {}
+
+    # ---------------------------------------------------------------- array level
+    def predict(self, dsr: float, dsl: float) -> None:
+        c = self.cfg
+        u = np.array([dsr, dsl], dtype=float)
+        a, w = motion_jacobians(self.s, u, c.wheelbase_m, c.kappa, c.chord)
+        q = np.diag(np.square(c.wheel_sigma_abs_m + c.wheel_sigma_rel * np.abs(u)))
+        self.s = motion(self.s, u, c.wheelbase_m, c.kappa, c.chord)
+        self.P = a @ self.P @ a.T + w @ q @ w.T
+
+    def _update(self, z: np.ndarray, h: np.ndarray, hx: np.ndarray, r: np.ndarray) -> float:
+        """Linear-in-state update; returns the innovation's Mahalanobis distance^2."""
+        y = z - hx
+        s = h @ self.P @ h.T + r
+        k = self.P @ h.T @ np.linalg.inv(s)
+        self.s = self.s + k @ y
+        i_kh = np.eye(3) - k @ h
+        self.P = i_kh @ self.P @ i_kh.T + k @ r @ k.T
+        return float(y @ np.linalg.solve(s, y))
+
+    def update_gps(self, east: float, north: float, sigma: float | None = None) -> float:
+        sg = self.cfg.gps_sigma_m if sigma is None else sigma
+        h = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        return self._update(np.array([east, north]), h, self.s[:2], np.eye(2) * sg * sg)
+
+    def update_heading(self, theta: float, sigma: float | None = None) -> float:
+        sg = self.cfg.gyro_sigma_rad if sigma is None else sigma
+        # Innovation wrapped to (-pi, pi] about the continuous state.
+        z = self.s[2] + wrap_angle(theta - self.s[2])
+        h = np.array([[0.0, 0.0, 1.0]])
+        return self._update(np.array([z]), h, self.s[2:], np.array([[sg * sg]]))
+
+    def box_arrays(self, n_sigma: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+        r = n_sigma * np.sqrt(np.maximum(np.diag(self.P), 0.0))
+        return self.s - r, self.s + r
+
+    # ---------------------------------------------------------------- messages
+    def estimate(self) -> PoseEstimate:
+        x, y, th = self.s
+        return PoseEstimate(
+            stamp_ns=int(self.stamp_ns),
+            pose=Pose2D(float(x), float(y), wrap_angle(float(th))),
+            covariance=tuple(float(v) for v in self.P.ravel()),
+            frame="map",
+            source=self.source,
+        )
+
+    def box(self, n_sigma: float = 3.0, robot: str = "") -> PoseBox:
+        lo, hi = self.box_arrays(n_sigma)
+        k = round(self.s[2] / (2 * math.pi)) * 2 * math.pi
+        return PoseBox(
+            stamp_ns=int(self.stamp_ns),
+            robot=robot,
+            x=Interval(float(lo[0]), float(hi[0])),
+            y=Interval(float(lo[1]), float(hi[1])),
+            theta=Interval(float(lo[2] - k), float(hi[2] - k)),
+        )
+
+    def _skip(self, why: str) -> None:
+        self.skipped[why] = self.skipped.get(why, 0) + 1
+
+    def feed_odometry(self, odom: RobotOdometry) -> PoseEstimate | None:
+        prev, self._last_odom = self._last_odom, odom
+        if prev is None:
+            self.stamp_ns = odom.stamp_ns
+            return self.estimate()
+        if odom.stamp_ns <= prev.stamp_ns:
+            self._last_odom = prev
+            self._skip("odometry_out_of_order")
+            return None
+        c = self.cfg
+        dsr, dsl = wheels_from_poses(prev.pose, odom.pose, c.wheelbase_m, c.kappa, c.chord)
+        if not (math.isfinite(dsr) and math.isfinite(dsl)):
+            self._skip("odometry_invalid")
+            return None
+        self.predict(dsr, dsl)
+        self.stamp_ns = odom.stamp_ns
+        return self.estimate()
+
+    def feed_gyro(self, g: GyroSample) -> PoseEstimate | None:
+        if not math.isfinite(g.angle_rad):
+            self._skip("gyro_invalid")
+            return None
+        self.update_heading(g.angle_rad + self.cfg.gyro_offset_rad)
+        self.stamp_ns = max(self.stamp_ns, g.stamp_ns)
+        return self.estimate()
+
+    def feed_gps(self, fix: GpsFix) -> PoseEstimate | None:
+        if fix.east_m is None or fix.north_m is None or fix.mode < self.cfg.min_gps_mode:
+            self._skip("gps_no_fix")
+            return None
+        if not (math.isfinite(fix.east_m) and math.isfinite(fix.north_m)):
+            self._skip("gps_invalid")
+            return None
+        self.update_gps(fix.east_m, fix.north_m)
+        self.stamp_ns = max(self.stamp_ns, fix.stamp_ns)
+        return self.estimate()
+
+    def feed(self, msg) -> PoseEstimate | None:
+        if isinstance(msg, RobotOdometry):
+            return self.feed_odometry(msg)
+        if isinstance(msg, GyroSample):
+            return self.feed_gyro(msg)
+        if isinstance(msg, GpsFix):
+            return self.feed_gps(msg)
+        self._skip("unhandled_" + type(msg).__name__)
+        return None
+
+
+@dataclass(frozen=True)
+class IntegrityReport:
+    """One step of the EKF/CP integrity check."""
+
+    stamp_ns: int
+    inside: bool  # the EKF estimate lies in the CP box
+    clipped: Pose2D  # the EKF estimate clipped to the CP box
+    distance_m: float  # how far the EKF position is outside the box (0 if inside)
+
+
+def _clip_angle(th: float, box: Interval) -> tuple[float, bool]:
+    if box.empty or box.width >= 2 * math.pi:
+        return th, True
+    mid = 0.5 * (box.lo + box.hi)
+    t = mid + wrap_angle(th - mid)
+    inside = box.lo <= t <= box.hi
+    return wrap_angle(min(max(t, box.lo), box.hi)), inside
+
+
+@dataclass
+class IntegrityMonitor:
+    """Runs alongside EKF and CP: alarms when the EKF leaves the guaranteed box."""
+
+    alarms: list[int] = field(default_factory=list)
+    checks: int = 0
+
+    def check(self, est: PoseEstimate, box: PoseBox) -> IntegrityReport:
+        p = est.pose
+        self.checks += 1
+        if box.x.empty or box.y.empty:
+            return IntegrityReport(est.stamp_ns, True, p, 0.0)
+        cx = min(max(p.x, box.x.lo), box.x.hi)
+        cy = min(max(p.y, box.y.lo), box.y.hi)
+        th, th_in = _clip_angle(p.theta, box.theta)
+        inside = box.x.contains(p.x) and box.y.contains(p.y) and th_in
+        if not inside:
+            self.alarms.append(est.stamp_ns)
+        return IntegrityReport(
+            est.stamp_ns, inside, Pose2D(cx, cy, th), math.hypot(p.x - cx, p.y - cy)
+        )
+
+    @property
+    def alarm_rate(self) -> float:
+        return len(self.alarms) / self.checks if self.checks else 0.0

@@ -1,0 +1,20 @@
+"""Robot-to-robot measurements for cooperative localization (ekf-vs-cp.txt §2.4)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class RelativeMeasurement:
+    """Robot ``robot`` sees robot ``target`` at ``range_m`` and ``bearing_rad`` (in the
+    observer's body frame, counter-clockwise from its heading), with guaranteed error
+    bounds (the true values lie within +/- the bounds)."""
+
+    stamp_ns: int
+    robot: str
+    target: str
+    range_m: float
+    bearing_rad: float
+    range_bound_m: float
+    bearing_bound_rad: float

@@ -1,0 +1,190 @@
+"""hilnav analyze on small synthetic logs with known errors (written with LogWriter)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from hilnav.log.analyze import analyze, box_contains, interp_pose, wrap
+from msgs import Interval, PoseBox
+from tests.conftest import HILNAV, ROOT, hilnav_env
+from tests.logsynth import (
+    HEADING_DRIFT_DEG_PER_M,
+    ODO_DRIFT_DEG_PER_M,
+    POSE_OFFSET_M,
+    write_synthetic_log,
+)
+
+
+@pytest.fixture(scope="module")
+def synth(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    path = tmp_path_factory.mktemp("synth") / "run.mcap"
+    return path, write_synthetic_log(path, seed=1)
+
+
+def test_path_errors_and_drift_per_metre(synth: tuple[Path, dict]) -> None:
+    path, exp = synth
+    s = analyze(path).summary["robots"]["r1"]
+    assert s["reference"] == "truth"
+    assert s["reference_distance_m"] == pytest.approx(exp["distance_m"], rel=1e-6)
+    pose = s["paths"]["pose"]
+    assert pose["position_error_m"]["mean"] == pytest.approx(POSE_OFFSET_M, abs=1e-6)
+    assert pose["heading_error_deg"]["max"] == pytest.approx(0.0, abs=1e-6)
+    odo = s["paths"]["odometry"]["heading_drift"]
+    assert odo["final_deg_per_m"] == pytest.approx(ODO_DRIFT_DEG_PER_M, rel=0.01)
+    assert odo["slope_deg_per_m"] == pytest.approx(ODO_DRIFT_DEG_PER_M, rel=0.03)
+    head = s["paths"]["heading"]["heading_drift"]
+    assert head["final_deg_per_m"] == pytest.approx(HEADING_DRIFT_DEG_PER_M, rel=0.01)
+    # the heading filter's positions are truth shifted to start at 0: aligned, ~no error
+    assert s["paths"]["heading"]["position_error_m"]["max"] < 0.02
+    # the drifting odometry wanders off: its position error grows
+    assert s["paths"]["odometry"]["position_error_m"]["final"] > 0.3
+
+
+def test_containment_map_and_diagnostics(synth: tuple[Path, dict]) -> None:
+    path, exp = synth
+    s = analyze(path).summary["robots"]["r1"]
+    cp = s["cp_boxes"]
+    assert cp["boxes"] == exp["boxes"] and cp["violations"] == exp["bad_boxes"]
+    assert cp["contained_fraction"] == pytest.approx(1 - exp["bad_boxes"] / exp["boxes"])
+    assert cp["area_m2"]["median"] == pytest.approx(0.16)
+    assert s["ekf_3sigma"]["pose"]["contained_fraction"] == pytest.approx(
+        exp["ekf_contained"], abs=0.01
+    )
+    assert s["map"]["plan"] == "office"
+    assert s["map"]["match_ratio"] == pytest.approx(exp["match_ratio"], abs=1e-6)
+    d = s["diagnostics"]["arcos"]
+    assert d["bad_checksums"] == 3 and d["connected_fraction"] == 1.0
+
+
+def test_without_truth_the_gps_is_the_reference(tmp_path: Path) -> None:
+    path = tmp_path / "nogt.mcap"
+    write_synthetic_log(path, with_truth=False, with_map=False)
+    s = analyze(path).summary["robots"]["r1"]
+    assert s["reference"] == "gps"
+    err = s["paths"]["pose"]["position_error_m"]
+    assert 0.1 < err["mean"] < 1.5  # GPS noise sigma 0.5 m per axis
+    assert "heading_error_deg" not in s["paths"]["pose"] and "cp_boxes" in s
+    assert "contained_fraction" not in s["cp_boxes"] and "map" not in s
+
+
+def test_truncated_log_is_analysed_up_to_its_end(synth: tuple[Path, dict], tmp_path: Path) -> None:
+    path, _ = synth
+    cut = tmp_path / "cut.mcap"
+    data = path.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    a = analyze(cut).summary
+    assert a["read"]["truncated"] is True
+    assert "r1" in a["robots"]
+
+
+def test_box_containment_wraps_theta() -> None:
+    box = PoseBox(0, "r1", Interval(0, 1), Interval(0, 1), Interval(3.0, 3.3))
+    assert box_contains(box, 0.5, 0.5, -3.1)  # -3.1 + 2 pi = 3.18 in [3.0, 3.3]
+    assert not box_contains(box, 0.5, 0.5, 2.9)
+    assert not box_contains(box, 1.5, 0.5, 3.1)
+    empty = PoseBox(0, "r1", Interval(1, 0), Interval(0, 1), Interval(0, 1))
+    assert not box_contains(empty, 0.5, 0.5, 0.5)
+
+
+def test_interp_heading_across_the_wrap() -> None:
+    import numpy as np
+
+    t = np.array([0, 10], dtype=np.int64)
+    x, y, th, ok = interp_pose(
+        t, np.zeros(2), np.zeros(2), np.array([3.1, -3.1]), np.array([5, 20])
+    )
+    assert ok.tolist() == [True, False]
+    assert abs(wrap(th[0] - np.pi)) < 1e-9  # halfway between 3.1 and -3.1 is pi, not 0
+
+
+def test_cli_writes_plots_and_summary(synth: tuple[Path, dict], tmp_path: Path) -> None:
+    path, exp = synth
+    out = tmp_path / "report"
+    proc = subprocess.run(
+        [*HILNAV, "analyze", str(path), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=hilnav_env(),
+        cwd=ROOT,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    printed = json.loads(proc.stdout.strip().splitlines()[-1])
+    saved = json.loads((out / "summary.json").read_text())
+    assert printed["robots"] == saved["robots"]
+    names = sorted(Path(p).name for p in saved["plots"])
+    assert names == ["r1_boxes.png", "r1_error.png", "r1_map.png", "r1_path.png"]
+    for p in saved["plots"]:
+        assert Path(p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert saved["robots"]["r1"]["map"]["match_ratio"] == pytest.approx(
+        exp["match_ratio"], abs=1e-6
+    )
+
+
+def test_cli_missing_file_is_a_clear_error(tmp_path: Path) -> None:
+    proc = subprocess.run(
+        [*HILNAV, "analyze", str(tmp_path / "nope.mcap")],
+        capture_output=True,
+        text=True,
+        env=hilnav_env(),
+        cwd=ROOT,
+        timeout=60,
+    )
+    assert proc.returncode == 2 and "no such log file" in proc.stderr
+
+
+def _rotated_run(path: Path, with_truth: bool) -> None:
+    """A pose source in its own frame: the truth rotated by 30 deg and shifted."""
+    import math
+
+    from hilnav.log.writer import LogWriter
+    from msgs import GpsFix, GroundTruth, Pose2D, PoseEstimate
+    from tests.logsynth import T0, truth_path
+
+    t_s, truth = truth_path()
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    with LogWriter(path, metadata={"robot": "r1"}, wall_clock=False) as w:
+        for i, ts in enumerate(t_s):
+            t = T0 + int(round(ts * 1e9))
+            x, y, th = truth[i]
+            if with_truth:
+                w.write("/r1/truth", GroundTruth(t, "r1", Pose2D(x, y, th)), t)
+            elif i % 10 == 0:
+                w.write("/r1/gps", GpsFix(t, mode=2, east_m=x, north_m=y), t)
+            p = Pose2D(c * x - s * y + 5.0, s * x + c * y - 2.0, th)
+            w.write("/r1/pose", PoseEstimate(t, p, (0.0,) * 9), t)
+
+
+@pytest.mark.parametrize("with_truth", [True, False])
+def test_rigid_fit_recovers_a_source_in_its_own_frame(tmp_path: Path, with_truth: bool) -> None:
+    path = tmp_path / "rot.mcap"
+    _rotated_run(path, with_truth)
+    s = analyze(path).summary["robots"]["r1"]
+    assert s["reference"] == ("truth" if with_truth else "gps")
+    pose = s["paths"]["pose"]
+    assert pose["position_error_m"]["mean"] > 3.0
+    assert pose["position_error_after_rigid_fit_m"]["max"] < 1e-6
+    assert pose["rigid_fit"]["dtheta_deg"] == pytest.approx(-30.0, abs=1e-6)
+
+
+def test_times_are_the_stamps_not_the_late_log_times(tmp_path: Path) -> None:
+    """A stalled service loop logs its outputs late: errors use the messages' stamps."""
+    from hilnav.log.writer import LogWriter
+    from msgs import GroundTruth, Pose2D, PoseEstimate
+    from tests.logsynth import T0, truth_path
+
+    t_s, truth = truth_path()
+    path = tmp_path / "late.mcap"
+    with LogWriter(path, metadata={"robot": "r1"}, wall_clock=False) as w:
+        for i, ts in enumerate(t_s):
+            t = T0 + int(round(ts * 1e9))
+            x, y, th = truth[i]
+            w.write("/r1/truth", GroundTruth(t, "r1", Pose2D(x, y, th)), t)
+            late = t + (3_000_000_000 if 100 <= i < 130 else 1_000_000)
+            w.write("/r1/pose", PoseEstimate(t, Pose2D(x, y, th), (0.0,) * 9), late)
+    err = analyze(path).summary["robots"]["r1"]["paths"]["pose"]["position_error_m"]
+    assert err["max"] < 1e-9

@@ -1,0 +1,173 @@
+"""Pipeline: deterministic service graph fed device messages of a simulated drive."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from drivers.sharp import STATUS_NAMES
+from fakes.world import GyroErrorModel, IrErrorModel, World
+from hilnav.config import load_config
+from hilnav.pipeline import Pipeline
+from msgs import GyroSample, IrScan, Pose2D, RobotOdometry, wrap_angle
+
+WAYPOINTS = [(3.0, 1.5), (3.0, 4.0), (1.0, 4.0), (1.0, 1.5), (3.0, 1.5), (3.0, 4.0)]
+
+
+def drive(seed: int = 0, seconds: float = 60.0):
+    """Messages (topic, msg) of a robot driving a loop in the office, in arrival order,
+    and the true poses at each odometry message."""
+    cfg = load_config(None)
+    world = World.from_name("office", seed=seed)
+    robot = world.add_robot("r1", Pose2D(1.5, 1.5, 0.0))
+    gyro = GyroErrorModel(seed=seed + 1)
+    ir = IrErrorModel()
+    rng = np.random.default_rng(seed + 2)
+    mounts = np.asarray(cfg.geometry.ir_mounts_rad())
+    dt, base = 0.01, robot.wheelbase_m
+    out, truth = [], []
+    ox = oy = oth = 0.0
+    enc0 = robot.encoder_m()
+    angle = 0.0
+    wp = 0
+    for i in range(int(seconds / dt)):
+        stamp = (i + 1) * 10_000_000
+        p = robot.pose
+        if wp < len(WAYPOINTS):
+            tx, ty = WAYPOINTS[wp]
+            if math.hypot(tx - p.x, ty - p.y) < 0.15:
+                wp += 1
+            err = wrap_angle(math.atan2(ty - p.y, tx - p.x) - p.theta)
+            w = max(-0.8, min(0.8, 2.0 * err))
+            v = 0.0 if abs(err) > 0.4 else 0.4
+        else:
+            v = w = 0.0
+        robot.command_wheels(v - 0.5 * w * base, v + 0.5 * w * base)
+        world.step(dt)
+        rate = gyro.sample(robot.yaw_rate_radps, dt)
+        angle += rate * dt
+        out.append(("gyro", GyroSample(stamp, rate, angle)))
+        if i % 10 == 9:  # 10 Hz SIPs
+            enc = robot.encoder_m()
+            dl, dr = enc[0] - enc0[0], enc[1] - enc0[1]
+            enc0 = enc
+            dd, dth = 0.5 * (dl + dr), (dr - dl) / base
+            ox += dd * math.cos(oth + 0.5 * dth)
+            oy += dd * math.sin(oth + 0.5 * dth)
+            oth = wrap_angle(oth + dth)
+            lin, ang = (dl + dr) / 0.2, dth / 0.1
+            out.append(("odometry", RobotOdometry(
+                stamp, Pose2D(ox, oy, oth), dl / 0.1, dr / 0.1, lin, ang, 12.5,
+                abs(lin) > 1e-9, True,
+            )))  # fmt: skip
+            truth.append((stamp, robot.pose))
+        if i % 5 == 4:  # 20 Hz IR
+            counts = ir.counts(world.ranges("r1", mounts, 11.0), rng)
+            r, st = ir.curve.range(ir.volts(counts))
+            out.append(("ir", IrScan(
+                stamp, 1, i, tuple(map(float, r)),
+                tuple(STATUS_NAMES[int(s)] for s in st), tuple(map(float, ir.volts(counts))),
+            )))  # fmt: skip
+    return out, truth
+
+
+def run(cfg, inputs):
+    p = Pipeline(cfg)
+    outputs = []
+    for topic, msg in inputs:
+        outputs += p.feed(topic, msg)
+    return p, outputs
+
+
+def test_same_inputs_give_the_same_outputs_and_a_sensible_heading():
+    inputs, truth = drive(seconds=30.0)
+    cfg = load_config(None)
+    m = dataclasses.replace(cfg.services.mapping, samples=60)
+    cfg = dataclasses.replace(cfg, services=dataclasses.replace(cfg.services, mapping=m))
+    p1, out1 = run(cfg, inputs)
+    _, out2 = run(cfg, inputs)
+    assert out1 == out2
+    topics = {t for t, _ in out1}
+    assert {"heading", "pose", "pose_box", "map", "association"} <= topics
+    headings = [m for t, m in out1 if t == "heading"]
+    last = headings[-1]
+    true_at = dict(truth)
+    stamp, true_pose = last.stamp_ns, true_at[last.stamp_ns]
+    assert stamp >= truth[-2][0]  # at most the last odometry is held (for its gyro)
+    assert abs(wrap_angle(last.theta_rad - true_pose.theta)) < math.radians(5)
+    assert math.hypot(last.pose.x - true_pose.x, last.pose.y - true_pose.y) < 0.5
+    # the map is throttled to one every publish_every_s of message time
+    maps = [m for t, m in out1 if t == "map"]
+    period = cfg.services.mapping.publish_every_s
+    assert 30.0 / period - 2 <= len(maps) <= 30.0 / period + 1
+    pose = p1.latest["pose"]
+    assert pose.frame == "map" and pose.stamp_ns == stamp
+    assert math.hypot(pose.pose.x - true_pose.x, pose.pose.y - true_pose.y) < 0.5
+    box = p1.latest["pose_box"]
+    assert box.robot == "r1"
+    assert box.x.lo <= true_pose.x <= box.x.hi and box.y.lo <= true_pose.y <= box.y.hi
+
+
+def test_services_switch_off_and_unknown_topics_are_ignored():
+    inputs, _ = drive(seconds=5.0)
+    cfg = load_config(None)
+    sv = dataclasses.replace(
+        cfg.services,
+        mapping=dataclasses.replace(cfg.services.mapping, enabled=False),
+        pose=dataclasses.replace(cfg.services.pose, enabled=False),
+        localization=dataclasses.replace(cfg.services.localization, enabled=False),
+    )
+    p, out = run(dataclasses.replace(cfg, services=sv), inputs)
+    assert {t for t, _ in out} == {"heading"}
+    assert p.services == ["heading"]
+    assert p.feed("cmd_vel", object()) == [] and p.feed("truth", None) == []
+
+
+def test_mapping_without_association_and_a_wrong_channel_count_is_counted():
+    inputs, _ = drive(seconds=5.0)
+    cfg = load_config(None)
+    m = dataclasses.replace(cfg.services.mapping, association=False, publish_every_s=1.0)
+    cfg = dataclasses.replace(cfg, services=dataclasses.replace(cfg.services, mapping=m))
+    p, out = run(cfg, inputs)
+    assert [t for t, _ in out].count("map") >= 4
+    bad = IrScan(10**10, 1, 0, (1.0,), ("ok",), (1.0,))
+    assert p.feed("ir", bad) == [] and p.mapping.mismatched == 1
+
+
+def test_bursts_after_a_stall_keep_gyro_and_encoder_intervals_aligned():
+    """A stalled reader delivers 4 SIPs with one stamp, and the gyro's 40 packets with
+    one stamp, in either order: the heading must come out as if nothing happened."""
+    inputs, truth = drive(seconds=25.0)
+    cfg = load_config(None)
+    sv = dataclasses.replace(
+        cfg.services,
+        mapping=dataclasses.replace(cfg.services.mapping, enabled=False),
+        localization=dataclasses.replace(cfg.services.localization, enabled=False),
+    )
+    cfg = dataclasses.replace(cfg, services=sv)
+
+    def stalled(gyro_first: bool):
+        out, held = [], []
+        for topic, msg in inputs:
+            t = msg.stamp_ns * 1e-9
+            in_stall = any(a <= t < a + 0.4 for a in (6.0, 11.0, 17.0))  # while turning
+            if in_stall:
+                held.append((topic, msg))
+                continue
+            if held:
+                stamp = msg.stamp_ns
+                burst = [(tp, dataclasses.replace(m, stamp_ns=stamp)) for tp, m in held]
+                burst.sort(key=lambda tm: (tm[0] != "gyro") == gyro_first)
+                out += burst
+                held = []
+            out.append((topic, msg))
+        return out
+
+    _, clean = run(cfg, inputs)
+    ref = [m for t, m in clean if t == "heading"][-1]
+    for gyro_first in (True, False):
+        _, out = run(cfg, stalled(gyro_first))
+        last = [m for t, m in out if t == "heading"][-1]
+        assert abs(wrap_angle(last.theta_rad - ref.theta_rad)) < math.radians(0.5), gyro_first
