@@ -71,3 +71,35 @@ def test_corrupt_file_is_reported(tmp_path):
         (tmp_path / name).write_bytes(b"not a mat file")
     with pytest.raises(VictoriaParkError, match="aa3_dr.mat"):
         load_victoria_park(tmp_path)
+
+
+def test_slam_service_on_the_first_minute(vp):
+    """Messages of the first 90 s through LandmarkSlam: trees are mapped and the laser
+    path stays within a few metres of the GPS (rigidly aligned)."""
+    from mapping.slam import LandmarkSlam, SlamConfig
+
+    slam = LandmarkSlam(SlamConfig(initial_sigma=(1e-3, 1e-3, 1e-3)))
+    t_end = vp.dr_time_s[0] + 90.0
+    events = [(m.stamp_ns, 0, m) for m in vp.controls() if m.stamp_ns < t_end * 1e9]
+    events += [(m.stamp_ns, 1, m) for m in vp.landmark_scans() if m.stamp_ns < t_end * 1e9]
+    track = []
+    for stamp, kind, msg in sorted(events, key=lambda e: (e[0], e[1])):
+        if kind == 0:
+            est = slam.on_control(msg)
+        else:
+            est, lmap = slam.on_scan(msg)
+        track.append((stamp * 1e-9, est.pose.x, est.pose.y))
+    track = np.array(track)
+    assert len(lmap.ids) > 10 and len(lmap.xs) == len(lmap.cov_xx)
+    assert min(lmap.cov_xx) > 0
+    sel = (vp.gps_time_s > track[0, 0] + 5) & (vp.gps_time_s < track[-1, 0])
+    k = np.searchsorted(track[:, 0], vp.gps_time_s[sel]) - 1
+    est = track[k, 1:]
+    gps = np.stack([vp.gps_x_m[sel], vp.gps_y_m[sel]], 1)
+    # best rigid alignment (Kabsch)
+    mu_e, mu_g = est.mean(0), gps.mean(0)
+    u, _, vt = np.linalg.svd((est - mu_e).T @ (gps - mu_g))
+    r = vt.T @ np.diag([1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T
+    err = np.linalg.norm((est - mu_e) @ r.T + mu_g - gps, axis=1)
+    assert np.ptp(gps[:, 0]) + np.ptp(gps[:, 1]) > 40  # the car did drive
+    assert np.sqrt(np.mean(err**2)) < 3.0

@@ -10,8 +10,9 @@ spare capacity (doubling) so augmentation does not copy P every time.
   ``Pvm <- Phi Pvm`` once when Pvm is next needed (O(n) per scan, not per 40 Hz step).
 - Update (§4.2.3): H of an observation has non-zeros only in the vehicle columns and in
   the two columns of its landmark, so ``P H' = P[:, v] Hv' + P[:, mi] Hm'`` costs O(N) per
-  observation and ``P <- P - (P H') S^-1 (P H')'`` O(N^2); all observations of a scan are
-  processed as one batch.
+  observation and ``P <- P - K S K' = P - V' V`` with ``V = L^-1 (P H')'``, ``S = L L'``
+  O(N^2) (a symmetric rank-2k product, so P stays exactly symmetric); all observations
+  of a scan are processed as one batch.
 - Augmentation (§4.2.4): ``m = g(xv, z)``, new cross-covariances ``Gx P[v, :]`` and
   new block ``Gx Pvv Gx' + Gz R Gz'`` (O(N) per new landmark).
 - Gating support: innovation covariances of every landmark at once, vectorised (O(n)).
@@ -216,14 +217,14 @@ class EkfSlam:
         nu = z - zp
         nu[:, 1] = wrap(nu[:, 1])
         nu = nu.ravel()
-        cho = scipy.linalg.cho_factor(s, lower=True, check_finite=False)
-        w = scipy.linalg.cho_solve(cho, pht.T, check_finite=False)  # S^-1 H P  (2k, N)
-        self._x[:n] += w.T @ nu
+        # S = L L';  V = L^-1 H P  (2k, N);  P <- P - V' V  (a symmetric rank-2k update)
+        low = np.linalg.cholesky(s)
+        v = scipy.linalg.solve_triangular(low, pht.T, lower=True, check_finite=False)
+        e = scipy.linalg.solve_triangular(low, nu, lower=True, check_finite=False)
+        self._x[:n] += v.T @ e
         self._x[2] = wrap(self._x[2])
-        p = self._p[:n, :n]
-        p -= pht @ w
-        p[:] = 0.5 * (p + p.T)
-        return float(nu @ scipy.linalg.cho_solve(cho, nu, check_finite=False))
+        self._p[:n, :n] -= v.T @ v
+        return float(e @ e)
 
     # ---------------------------------------------------------------- augmentation
     def augment(self, z: np.ndarray) -> list[int]:

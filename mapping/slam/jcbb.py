@@ -76,7 +76,7 @@ def jcbb(
             d = joint_nis(trial)
             if d < thresholds[len(trial) - 1]:
                 rec(i + 1, hyp[:i] + [int(j)] + hyp[i + 1 :], trial, d)
-        if len(pairs) + (m - i - 1) >= state["best_pairs"]:
+        if len(pairs) + (m - i - 1) > state["best_pairs"]:
             rec(i + 1, hyp, pairs, nis)
 
     rec(0, [-1] * m, [], 0.0)

@@ -38,6 +38,9 @@ HALF_PI = 0.5 * math.pi
 
 def wrap(a: np.ndarray | float) -> np.ndarray | float:
     """Wrap angles (array or scalar) to (-pi, pi]."""
+    if isinstance(a, float):
+        w = math.remainder(a, 2.0 * math.pi)
+        return math.pi if w == -math.pi else w
     w = np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
     w = np.where(w == -np.pi, np.pi, w)
     return float(w) if np.ndim(w) == 0 else w
