@@ -13,7 +13,7 @@ import pytest
 from hilnav.log.reader import ReadStats, read_messages, read_metadata
 from tests.conftest import HILNAV, ROOT, hilnav_env
 
-DURATION_S = 20.0
+DURATION_S = 30.0
 
 
 def _need_loader() -> None:
@@ -94,3 +94,35 @@ def test_import_of_a_missing_folder_is_a_clear_error(tmp_path: Path) -> None:
     )  # fmt: skip
     assert proc.returncode == 2
     assert "not found" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_replay_runs_ekf_slam_on_it_deterministically(vp_dir: Path, tmp_path: Path) -> None:
+    _need_loader()
+    src = tmp_path / "vp.mcap"
+    proc = subprocess.run(
+        [*HILNAV, "import", "victoria-park", str(vp_dir), str(src), "--duration", str(DURATION_S)],
+        capture_output=True, text=True, env=hilnav_env(), cwd=ROOT, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    reports = []
+    for name in ("a.mcap", "b.mcap"):
+        proc = subprocess.run(
+            [*HILNAV, "replay", str(src), "--out", str(tmp_path / name)],
+            capture_output=True, text=True, env=hilnav_env(), cwd=ROOT, timeout=240,
+        )  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        reports.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    assert (tmp_path / "a.mcap").read_bytes() == (tmp_path / "b.mcap").read_bytes()
+    rep = reports[0]
+    assert rep["config"].startswith("landmark-slam") and rep["pipeline_errors"] == 0
+    assert rep["outputs"]["pose"] == rep["fed"]["control"] + rep["fed"]["landmark_scan"]
+    proc = subprocess.run(
+        [*HILNAV, "analyze", str(tmp_path / "a.mcap"), "--out", str(tmp_path / "an"), "--no-plots"],
+        capture_output=True, text=True, env=hilnav_env(), cwd=ROOT, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    vp = json.loads(proc.stdout.strip().splitlines()[-1])["robots"]["vp"]
+    assert vp["reference"] == "gps" and vp["landmarks"]["count"] >= 10
+    # EKF-SLAM against GPS (its own frame: after the best rigid fit); the GPS itself is
+    # good to a few metres at best
+    assert vp["paths"]["pose"]["position_error_after_rigid_fit_m"]["rms"] < 3.0

@@ -26,6 +26,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", help="output log (default: <log without .mcap>-replay.mcap)")
     p.add_argument("--from-raw", action="store_true", help="decode the raw bytes again")
+    p.add_argument(
+        "--pipeline",
+        default="auto",
+        choices=("auto", "daemon", "landmark-slam"),
+        help="services to run: the daemon's (Pioneer sensors) or EKF-SLAM over controls and "
+        "landmark scans (imported data sets); auto picks by the log's content",
+    )
     p.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -46,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
             from_raw=args.from_raw,
             progress=not args.no_progress and sys.stderr.isatty(),
             compression=args.compression,
+            pipeline=args.pipeline,
         )
     except ValueError as exc:  # ConfigError is a ValueError: its message names the fix
         raise CliError(str(exc)) from None

@@ -167,6 +167,8 @@ def plot_boxes(ra: RobotAnalysis, path: Path) -> Path | None:
         ax.scatter(ts[bad], bs.area[bad], color="tab:red", s=12, label="truth outside", zorder=3)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("area (m²)")
+    ax.ticklabel_format(axis="y", useOffset=False)
+    ax.set_ylim(bottom=0.0, top=max(float(np.max(bs.area)) * 1.1, 1e-3))
     frac = ra.summary.get("cp_boxes", {}).get("contained_fraction")
     title = f"{ra.name}: CP pose box areas"
     if frac is not None:

@@ -8,7 +8,8 @@ adds a view on its own channel, so the Foxglove app draws the log with no plugin
 Crash safety: the mcap library keeps the open chunk in memory until it reaches
 ``chunk_size``. Here the chunk is finished and written out (``Writer.flush``) whenever
 ``flush_every_s`` of log time has passed since the chunk's first message and, unless
-``wall_clock=False``, also by a timer thread every ``flush_every_s`` of wall time. A killed
+``wall_clock=False``, also by a timer thread every ``flush_every_s`` of wall time, which
+also fsyncs what was written (``fsync=True``) so that a power cut loses no more. A killed
 process therefore loses at most about ``flush_every_s`` of messages; ``hilnav log recover``
 turns the truncated file back into a valid one. With ``wall_clock=False`` the chunk
 boundaries depend only on the messages, so the same input gives the same bytes (replay).
@@ -19,6 +20,7 @@ Thread-safe: one lock around every call.
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 from pathlib import Path
@@ -62,6 +64,7 @@ class LogWriter:
         metadata: dict[str, str] | None = None,
         foxglove_views: bool = True,
         wall_clock: bool = True,
+        fsync: bool = True,
     ) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(
@@ -87,6 +90,10 @@ class LogWriter:
         self._chunk_first_ns: int | None = None
         self._last_flush_wall = time.monotonic()
         self._closed = False
+        self._dirty = False  # chunks handed to the OS since the last fsync
+        # fsync (power loss, not only a killed process) from the timer thread, outside the
+        # lock, on a duplicate descriptor that close() cannot pull away under it.
+        self._sync_fd = os.dup(self._stream.fileno()) if fsync and wall_clock else None
         self.messages_written = 0
         self.views_skipped = 0  # views not written (non-finite values)
         self.bytes_written = 0
@@ -231,6 +238,7 @@ class LogWriter:
         if self._pending:
             self._writer.flush()
             self._pending = 0
+            self._dirty = True
         self._chunk_first_ns = None
         self._last_flush_wall = time.monotonic()
 
@@ -251,6 +259,16 @@ class LogWriter:
                     and time.monotonic() - self._last_flush_wall >= self._flush_s * 0.75
                 ):
                     self._flush_locked()
+                dirty, self._dirty = self._dirty, False
+            if dirty:
+                self._sync()
+
+    def _sync(self) -> None:
+        if self._sync_fd is not None:
+            try:
+                os.fsync(self._sync_fd)
+            except OSError:  # e.g. a pipe or a file system without fsync: best effort
+                pass
 
     def _check_open(self) -> None:
         if self._closed:
@@ -267,3 +285,7 @@ class LogWriter:
             self._stream.close()
         if self._timer is not None and self._timer is not threading.current_thread():
             self._timer.join(timeout=2.0)
+        if self._sync_fd is not None:
+            self._sync()
+            os.close(self._sync_fd)
+            self._sync_fd = None
