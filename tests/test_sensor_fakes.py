@@ -342,3 +342,28 @@ def test_cli_fake_ir_on_can_behind_slcan_and_probe_in_another_process(tmp_path):
     assert out.returncode == 0, out.stderr
     scans = [json.loads(line) for line in out.stdout.splitlines()]
     assert len(scans) == 3 and all(len(s["status"]) == 6 for s in scans)
+
+
+def test_cli_fake_takes_the_robot_config_file(tmp_path):
+    cfg = tmp_path / "robot.toml"
+    cfg.write_text(
+        'name = "r7"\n[devices.gps]\nenabled = false\n[devices.ir]\nlink = "serial"\n'
+        'rate_hz = 40\n[simulation]\nplan = "paper_room"\nseed = 3\n'
+    )
+    out = subprocess.run(
+        HILNAV + ["fake", "--config", str(cfg), "--duration", "1", "--link-dir", str(tmp_path)],
+        capture_output=True, text=True, env=hilnav_env(), timeout=30,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert set(json.loads(out.stdout.splitlines()[0])) == {"arcos", "ir", "gyro"}
+    # A command-line option wins over the file; a bad file names the key.
+    out = subprocess.run(
+        HILNAV + ["fake", "--config", str(cfg), "--devices", "gps", "--duration", "1",
+                  "--link-dir", str(tmp_path)],
+        capture_output=True, text=True, env=hilnav_env(), timeout=30,
+    )  # fmt: skip
+    assert set(json.loads(out.stdout.splitlines()[0])) == {"gps"}
+    cfg.write_text("[simulation]\nplann = 1\n")
+    bad = subprocess.run(HILNAV + ["fake", "--config", str(cfg)], capture_output=True,
+                         text=True, env=hilnav_env(), timeout=30)  # fmt: skip
+    assert bad.returncode == 2 and "plann" in bad.stderr and "Traceback" not in bad.stderr
