@@ -65,5 +65,39 @@ class Driver(Protocol):
     def diagnostics(self, stamp_ns: int) -> DeviceDiagnostics: ...
 
 
+class LinkDiagnostics:
+    """Mixin: ``diagnostics()`` of a driver from its codec's counters and its link state.
+
+    Expects ``device``, ``codec.stats``, ``connected``, ``reconnects``, ``last_error`` and
+    ``_last_seen_ns``; the rate is of good frames since the previous report.
+    """
+
+    _rate_mark: tuple[float, int] = (0.0, 0)
+
+    def _frames_lost(self, stats: CodecStats) -> int:
+        return stats.frames_lost
+
+    def diagnostics(self, stamp_ns: int) -> DeviceDiagnostics:
+        s = self.codec.stats  # type: ignore[attr-defined]
+        now = time.monotonic()
+        t0, n0 = self._rate_mark
+        rate = (s.frames_ok - n0) / (now - t0) if t0 and now > t0 else 0.0
+        self._rate_mark = (now, s.frames_ok)
+        return DeviceDiagnostics(
+            stamp_ns=stamp_ns,
+            device=self.device,  # type: ignore[attr-defined]
+            connected=self.connected,  # type: ignore[attr-defined]
+            frames_ok=s.frames_ok,
+            bad_checksums=s.bad_checksums,
+            resyncs=s.resyncs,
+            bytes_skipped=s.bytes_skipped,
+            frames_lost=self._frames_lost(s),
+            reconnects=self.reconnects,  # type: ignore[attr-defined]
+            last_seen_ns=self._last_seen_ns,  # type: ignore[attr-defined]
+            rate_hz=rate,
+            last_error=self.last_error,  # type: ignore[attr-defined]
+        )
+
+
 class DeviceError(OSError):
     """A device cannot be opened or used: the message says which port and what to do."""

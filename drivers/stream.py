@@ -13,12 +13,11 @@ import threading
 import time
 from typing import Any
 
-from drivers.base import Clock, DeviceError, RawHook, wall_clock_ns
+from drivers.base import Clock, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
 from drivers.transport import FileTransport, LinkLost, Transport, open_transport
-from msgs import DeviceDiagnostics
 
 
-class StreamDriver:
+class StreamDriver(LinkDiagnostics):
     """Base of the streaming sensor drivers (see the module docstring)."""
 
     device = "stream"
@@ -51,7 +50,6 @@ class StreamDriver:
         self._retry_at = 0.0
         self._backoff = reconnect_initial_s
         self._last_seen_ns = 0
-        self._rate_mark = (0.0, 0)
         self._flushed = False
 
     # -- connection ------------------------------------------------------------------
@@ -152,24 +150,3 @@ class StreamDriver:
             if self._t is not None:
                 self._t.close()
                 self._t = None
-
-    def diagnostics(self, stamp_ns: int) -> DeviceDiagnostics:
-        s = self.codec.stats
-        now = time.monotonic()
-        t0, n0 = self._rate_mark
-        rate = (s.frames_ok - n0) / (now - t0) if t0 and now > t0 else 0.0
-        self._rate_mark = (now, s.frames_ok)
-        return DeviceDiagnostics(
-            stamp_ns=stamp_ns,
-            device=self.device,
-            connected=self.connected,
-            frames_ok=s.frames_ok,
-            bad_checksums=s.bad_checksums,
-            resyncs=s.resyncs,
-            bytes_skipped=s.bytes_skipped,
-            frames_lost=s.frames_lost,
-            reconnects=self.reconnects,
-            last_seen_ns=self._last_seen_ns,
-            rate_hz=rate,
-            last_error=self.last_error,
-        )

@@ -11,7 +11,8 @@ Behaves like the ARCOS controller as ARIA and MobileSim (EmulatePioneer) expect:
 - odometry as firmware does: integrated from the world robot's encoder ticks with the
   nominal wheel base (the truth, with slip, stays in the world).
 Fault knobs: corrupt a fraction of the bytes sent, drop whole packets, vanish (the port
-goes away) and reappear, pace output at the baud rate.
+goes away) and reappear, pace output at the baud rate; controller_reset() (the 0xFF
+packet, session forgotten) and go_silent()/recover() (a hung controller) for tests.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from drivers.arcos.packet import PacketParser, frame
 from drivers.arcos.packets import (
     CONFIG_ID,
     ENCODER_ID,
+    RESET_ID,
     SIP_MOVING,
     SIP_STOPPED,
     encode_config,
@@ -105,6 +107,7 @@ class PioneerEmulator:
         self.unknown_commands = 0
         self.watchdog_trips = 0
         self.sessions = 0
+        self.hung = False
 
     def _reset_session(self) -> None:
         self.sync_state = 0  # 0..3; 3 = synced, waiting for OPEN
@@ -164,6 +167,22 @@ class PioneerEmulator:
         if self.port:
             self.port.reappear()
 
+    def controller_reset(self) -> None:
+        """The microcontroller resets: it sends the 0xFF packet and forgets the session."""
+        with self._lock:
+            self._reset_session()
+        self._send(RESET_ID)
+
+    def go_silent(self) -> None:
+        """The firmware hangs: the port stays, but nothing more is sent or answered."""
+        with self._lock:
+            self._reset_session()
+            self.hung = True
+
+    def recover(self) -> None:
+        """The hung firmware comes back (like a power cycle): it answers a new handshake."""
+        self.hung = False
+
     # -- the serial side ------------------------------------------------------------------
     def _send(self, packet_id: int, data: bytes = b"") -> None:
         if self.port is None:
@@ -197,7 +216,7 @@ class PioneerEmulator:
                 vanished_at = None
                 f.vanish_after_s = None
             data = self.port.read(max(0.0, min(0.02, next_sip - now)))
-            if data:
+            if data and not self.hung:
                 for pkt in parser.feed(data, time.monotonic_ns()):
                     with self._lock:
                         self._handle(pkt.packet_id, pkt.data)
@@ -208,7 +227,7 @@ class PioneerEmulator:
                     next_sip = now + self.cfg.sip_cycle_ms / 1000.0
                 with self._lock:
                     self._check_watchdog(now)
-                    if self.opened:
+                    if self.opened and not self.hung:
                         sip_id, sip = self._sip()
                         enc = self._ticks if self.stream_encoders else None
                     else:

@@ -30,10 +30,56 @@ class FakeOptions:
     gyro_rate_hz: int = 100
     gps_rate_hz: float = 1.0
     replay_fast: bool = False
+    ir_board: dict = field(default_factory=dict)  # IrBoardConfig fields (from --config)
+    wheelbase_m: float = 0.33
+
+
+def apply_config(opts: FakeOptions) -> FakeOptions:
+    """Options from the robot TOML in ``opts.config`` (if any): its name, [simulation] plan,
+    seed, GPS rate and corruption, which devices are enabled, the IR board (link, rate, id,
+    ADC, mounts) and the gyro rate. Options left at their defaults take the file's values;
+    options given on the command line win."""
+    if not opts.config:
+        return opts
+    from dataclasses import fields, replace
+
+    from hilnav.config import ConfigError, load_config
+
+    try:
+        cfg = load_config(opts.config)
+    except (ConfigError, OSError) as exc:
+        raise CliError(f"--config {opts.config}: {exc}") from None
+    d, sim = cfg.devices, cfg.simulation
+    from_file = {
+        "robot": cfg.name,
+        "plan": sim.plan,
+        "seed": sim.seed,
+        "gps_rate_hz": sim.gps_rate_hz,
+        "corrupt": sim.corrupt,
+        "devices": tuple(n for n in ("arcos", "ir", "gyro", "gps") if getattr(d, n).enabled),
+        "ir_link": "slcan" if d.ir.link == "can" else "serial",
+        "ir_rate_hz": d.ir.rate_hz,
+        "gyro_rate_hz": d.gyro.rate_hz,
+    }
+    defaults = FakeOptions()
+    changes = {
+        f.name: from_file[f.name]
+        for f in fields(FakeOptions)
+        if f.name in from_file and getattr(opts, f.name) == getattr(defaults, f.name)
+    }
+    changes["ir_board"] = {
+        "board_id": d.ir.board_id,
+        "adc_bits": d.ir.adc_bits,
+        "vref_v": d.ir.vref_v,
+        "mounts": tuple(tuple(m) for m in cfg.geometry.ir_mounts_rad()),
+    }
+    changes["wheelbase_m"] = cfg.geometry.wheel_base_m
+    return replace(opts, **changes)
 
 
 def build_fakes(opts: FakeOptions) -> FakeRunner:
     """A runner with the world and the requested emulators (not started)."""
+    opts = apply_config(opts)
     if opts.plan not in BUILTIN:
         raise CliError(
             f"--plan {opts.plan!r}: unknown floor plan; choose one of {', '.join(BUILTIN)}"
@@ -50,7 +96,7 @@ def build_fakes(opts: FakeOptions) -> FakeRunner:
             f"--devices: unknown device {sorted(bad)[0]!r}; choose from arcos,ir,gyro,gps"
         )
     world = World.from_name(opts.plan, seed=opts.seed)
-    world.add_robot(opts.robot)
+    world.add_robot(opts.robot, wheelbase_m=opts.wheelbase_m)
     runner = FakeRunner(world, link_dir=opts.link_dir)
     faults = PioneerFaults(opts.corrupt, opts.drop, opts.vanish_after, opts.vanish_for)
     from fakes.pioneer import PioneerConfig
@@ -84,7 +130,7 @@ def _add_sensors(runner: FakeRunner, opts: FakeOptions) -> None:
         runner.add(
             IrBoardEmulator(
                 opts.robot,
-                IrBoardConfig(rate_hz=opts.ir_rate_hz),
+                IrBoardConfig(rate_hz=opts.ir_rate_hz, **opts.ir_board),
                 link=opts.ir_link,
                 can_channel=f"hilnav-{opts.robot}",
                 seed=opts.seed + 1,

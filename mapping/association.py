@@ -29,11 +29,17 @@ Choices made here where the paper is silent, and beyond the paper:
   span is re-inserted into a snapshot of the map taken at the last correction (exact:
   no "un-inserting" of clamped log-odds).
 - Never make the map worse: the uncorrected branch is kept when the evidence is flat
-  (effective sample size over sample count above ``ess_max``: outcome "weak") or when the
-  corrected pose does not explain the window better than the uncorrected one by
-  ``lr_min`` nats (tempered log-likelihood ratio: outcome "confirmed" if the uncorrected
-  pose is plausible under the weighted samples, else "worse"). Every check is reported as
-  a :class:`msgs.AssociationReport`.
+  (effective sample size over sample count above ``ess_max``: outcome "weak"), when the
+  uncorrected pose is plausible under the importance-weighted posterior of the prior
+  cloud (squared Mahalanobis distance below ``significance_d2``, 11.34 = chi-square 3 dof
+  at 99 %: outcome "confirmed"; the annealed estimate alone would overfit the noise and
+  move an undrifted pose), or when the corrected pose does not explain the window better
+  than the uncorrected one by ``lr_min`` nats (tempered log-likelihood ratio: outcome
+  "worse"). Every check is reported as a :class:`msgs.AssociationReport` with its reason.
+- Beam model against a map: the expected range z* is the centre of the first run of
+  occupied cells along the ray (eq. 6 widens walls towards the robot, so the first
+  occupied cell is biased short), and sigma_hit (0.2 m) covers the map's wall thickness
+  as well as the sensor's noise. Both were needed for an undrifted run to stay untouched.
 - The samples spread with their own noise model (``heading_noise_*``,
   ``position_noise_*``) plus the growth of the heading filter's variance: the heading
   filter of eq. 1-4 treats the gyro's scale error as white and is overconfident over
@@ -78,13 +84,14 @@ class AssociationConfig:
     a_hit: float = 0.75
     a_rand: float = 0.2
     a_max: float = 0.05
-    sigma_hit_m: float = 0.1
+    sigma_hit_m: float = 0.2
     sigma_hit_per_m2: float = 0.01
     occupied_p: float = 0.65
     temperature: float = 4.0
     refine_rounds: int = 3
     ess_max: float = 0.5
     lr_min: float = 2.0
+    significance_d2: float = 11.34
     max_range_m: float = 5.5
 
     def __post_init__(self) -> None:
@@ -355,7 +362,13 @@ class SampleAssociation:
         flat = np.where(inside, row * cols + col, 0)
         hit = inside & occ[flat]
         any_hit = hit.any(axis=-1)
-        z_star = np.where(any_hit, t[np.argmax(hit, axis=-1)], np.inf)  # (P, M)
+        # The expected range is the centre of the first run of occupied cells: eq. 6 widens
+        # walls towards the robot, and the first occupied cell would be biased short.
+        first = np.argmax(hit, axis=-1)
+        started = np.arange(len(t)) >= first[..., None]
+        run = started & (np.cumsum(started & ~hit, axis=-1) == 0)
+        first = first + (run.sum(axis=-1) - 1) // 2
+        z_star = np.where(any_hit, t[first], np.inf)  # (P, M)
         z = np.broadcast_to(ranges[None, :], z_star.shape)
         sig = np.hypot(cfg.sigma_hit_m, cfg.sigma_hit_per_m2 * np.nan_to_num(z, nan=z_max) ** 2)
         with np.errstate(invalid="ignore", over="ignore"):
@@ -394,39 +407,60 @@ class SampleAssociation:
                 stamp_ns, "weak", node, n, ess, 0.0,
                 reason=f"evidence too flat (ESS/N {ess:.2f} > {cfg.ess_max})",
             )  # fmt: skip
+        est = self._estimate
+        mean0, _ = self._mean_std(prior, w)
+        d2 = self._mahalanobis2(prior, w, est)
+        if d2 < cfg.significance_d2:
+            # The uncorrected pose is plausible under the posterior: keep it, and leave the
+            # cloud as it was (resampling on biased evidence would drag it away).
+            corr = self._correction(mean0, est)
+            return AssociationReport(
+                stamp_ns, "confirmed", node, n, ess, self._lr(mean0, est, sens, ranges, kinds),
+                float(corr[0]), float(corr[1]), float(corr[2]),
+                reason=f"uncorrected pose inside the posterior (d2 {d2:.1f} < "
+                f"{cfg.significance_d2}): kept",
+            )  # fmt: skip
         parts, weights = prior, w
         for _ in range(cfg.refine_rounds):
-            mean, std = self._mean_std(parts, weights)
+            _, std = self._mean_std(parts, weights)
             parts = parts[_systematic(weights, self._rng)]
             jit = np.maximum(0.5 * std, [0.01, 0.01, math.radians(0.2)])
             parts = parts + self._rng.normal(0.0, 1.0, parts.shape) * jit
             weights = self._weights(self.log_likelihood(parts, sens, ranges, kinds))
-        mean, std = self._mean_std(parts, weights)
-        est = self._estimate
-        ll2 = self.log_likelihood(np.stack([mean, est]), sens, ranges, kinds)
-        lr = float(ll2[0] - ll2[1]) / cfg.temperature
-        corr = np.array([mean[0] - est[0], mean[1] - est[1], float(_wrap(mean[2] - est[2]))])
-        posterior = parts[_systematic(weights, self._rng)]
-        if lr >= cfg.lr_min:
-            realigned = self._realign(mean)
-            self._particles = posterior
+        mean, _ = self._mean_std(parts, weights)
+        lr = self._lr(mean, est, sens, ranges, kinds)
+        corr = self._correction(mean, est)
+        if lr < cfg.lr_min:
             return AssociationReport(
-                stamp_ns, "accepted", node, n, ess, lr,
-                float(corr[0]), float(corr[1]), float(corr[2]), realigned,
+                stamp_ns, "worse", node, n, ess, lr, float(corr[0]), float(corr[1]),
+                float(corr[2]),
+                reason=f"corrected pose not better by {cfg.lr_min} nats: uncorrected branch kept",
             )  # fmt: skip
-        z = np.abs(corr) / np.maximum(std, [0.01, 0.01, math.radians(0.2)])
-        if np.all(z < 3.0):
-            shift = np.array([est[0] - mean[0], est[1] - mean[1], float(_wrap(est[2] - mean[2]))])
-            self._particles = posterior + shift
-            return AssociationReport(
-                stamp_ns, "confirmed", node, n, ess, lr,
-                float(corr[0]), float(corr[1]), float(corr[2]),
-                reason="the uncorrected pose explains the scans as well: kept",
-            )  # fmt: skip
+        realigned = self._realign(mean)
+        self._particles = parts[_systematic(weights, self._rng)]
         return AssociationReport(
-            stamp_ns, "worse", node, n, ess, lr, float(corr[0]), float(corr[1]), float(corr[2]),
-            reason=f"corrected pose not better by {cfg.lr_min} nats: uncorrected branch kept",
+            stamp_ns, "accepted", node, n, ess, lr,
+            float(corr[0]), float(corr[1]), float(corr[2]), realigned,
         )  # fmt: skip
+
+    def _lr(self, a: np.ndarray, b: np.ndarray, sens, ranges, kinds) -> float:  # noqa: ANN001
+        """Tempered log-likelihood ratio of pose a over pose b on the window's beams."""
+        ll = self.log_likelihood(np.stack([a, b]), sens, ranges, kinds)
+        return float(ll[0] - ll[1]) / self.config.temperature
+
+    @staticmethod
+    def _correction(new: np.ndarray, old: np.ndarray) -> np.ndarray:
+        return np.array([new[0] - old[0], new[1] - old[1], float(_wrap(new[2] - old[2]))])
+
+    @staticmethod
+    def _mahalanobis2(parts: np.ndarray, w: np.ndarray, pose: np.ndarray) -> float:
+        """Squared Mahalanobis distance of ``pose`` from the weighted samples' mean."""
+        mean, _ = SampleAssociation._mean_std(parts, w)
+        d = parts - mean
+        d[:, 2] = _wrap(d[:, 2])
+        cov = (w[:, None] * d).T @ d + np.diag([1e-6, 1e-6, 1e-8])
+        dev = np.array([pose[0] - mean[0], pose[1] - mean[1], float(_wrap(pose[2] - mean[2]))])
+        return float(dev @ np.linalg.solve(cov, dev))
 
     @staticmethod
     def _mean_std(parts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -292,3 +292,78 @@ def test_cli_probe_reads_a_file_and_reports_bad_ports(shared_dir, tmp_path):
     bad = subprocess.run(HILNAV + ["probe", "ir", str(tmp_path / "nope")], capture_output=True,
                          text=True, env=hilnav_env(), timeout=20)  # fmt: skip
     assert bad.returncode == 2 and "no such port" in bad.stderr
+
+
+def test_cli_fake_serves_all_four_devices_and_probe_reads_each(tmp_path):
+    """Default ``hilnav fake``: arcos, ir, gyro, gps on ptys; probe reads ir, gyro and gps."""
+    fake = subprocess.Popen(
+        HILNAV + ["fake", "--plan", "paper_room", "--gps-rate", "5", "--duration", "25",
+                  "--link-dir", str(tmp_path)],
+        stdout=subprocess.PIPE, text=True, env=hilnav_env(),
+    )  # fmt: skip
+    try:
+        ports = json.loads(fake.stdout.readline())
+        assert set(ports) == {"arcos", "ir", "gyro", "gps"}
+        rows = {}
+        for dev in ("ir", "gyro", "gps"):
+            out = subprocess.run(
+                HILNAV + ["probe", dev, ports[dev], "--count", "3", "--seconds", "8"],
+                capture_output=True, text=True, env=hilnav_env(), timeout=30,
+            )  # fmt: skip
+            assert out.returncode == 0, out.stderr
+            rows[dev] = [json.loads(line) for line in out.stdout.splitlines()]
+    finally:
+        fake.terminate()
+        fake.wait(timeout=10)
+        fake.stdout.close()
+    assert len(rows["ir"]) == 3 and len(rows["ir"][0]["ranges_m"]) == 6
+    assert len(rows["gyro"]) == 3 and "rate_radps" in rows["gyro"][0]
+    gps = rows["gps"][-1]
+    assert gps["mode"] == 3 and gps["time"].endswith("Z") and -90 <= gps["lat"] <= 90
+
+
+def test_cli_fake_ir_on_can_behind_slcan_and_probe_in_another_process(tmp_path):
+    fake = subprocess.Popen(
+        HILNAV + ["fake", "--devices", "ir", "--ir-link", "slcan", "--plan", "paper_room",
+                  "--duration", "20", "--link-dir", str(tmp_path)],
+        stdout=subprocess.PIPE, text=True, env=hilnav_env(),
+    )  # fmt: skip
+    try:
+        ports = json.loads(fake.stdout.readline())
+        assert set(ports) == {"ir_can"} and ports["ir_can"].startswith("slcan:")
+        out = subprocess.run(
+            HILNAV + ["probe", "ir", ports["ir_can"], "--count", "3", "--seconds", "8"],
+            capture_output=True, text=True, env=hilnav_env(), timeout=30,
+        )  # fmt: skip
+    finally:
+        fake.terminate()
+        fake.wait(timeout=10)
+        fake.stdout.close()
+    assert out.returncode == 0, out.stderr
+    scans = [json.loads(line) for line in out.stdout.splitlines()]
+    assert len(scans) == 3 and all(len(s["status"]) == 6 for s in scans)
+
+
+def test_cli_fake_takes_the_robot_config_file(tmp_path):
+    cfg = tmp_path / "robot.toml"
+    cfg.write_text(
+        'name = "r7"\n[devices.gps]\nenabled = false\n[devices.ir]\nlink = "serial"\n'
+        'rate_hz = 40\n[simulation]\nplan = "paper_room"\nseed = 3\n'
+    )
+    out = subprocess.run(
+        HILNAV + ["fake", "--config", str(cfg), "--duration", "1", "--link-dir", str(tmp_path)],
+        capture_output=True, text=True, env=hilnav_env(), timeout=30,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert set(json.loads(out.stdout.splitlines()[0])) == {"arcos", "ir", "gyro"}
+    # A command-line option wins over the file; a bad file names the key.
+    out = subprocess.run(
+        HILNAV + ["fake", "--config", str(cfg), "--devices", "gps", "--duration", "1",
+                  "--link-dir", str(tmp_path)],
+        capture_output=True, text=True, env=hilnav_env(), timeout=30,
+    )  # fmt: skip
+    assert set(json.loads(out.stdout.splitlines()[0])) == {"gps"}
+    cfg.write_text("[simulation]\nplann = 1\n")
+    bad = subprocess.run(HILNAV + ["fake", "--config", str(cfg)], capture_output=True,
+                         text=True, env=hilnav_env(), timeout=30)  # fmt: skip
+    assert bad.returncode == 2 and "plann" in bad.stderr and "Traceback" not in bad.stderr

@@ -24,9 +24,9 @@ from drivers.arcos.commands import Cmd, encode_command, vel2_argument
 from drivers.arcos.packet import ArcosPacket
 from drivers.arcos.packets import RESET_ID, SIP_MOVING, SIP_STOPPED, decode_sync2
 from drivers.arcos.params import P3DX_SH, RobotParams, params_for
-from drivers.base import Clock, DeviceError, RawHook, wall_clock_ns
+from drivers.base import Clock, CodecStats, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
 from drivers.transport import FileTransport, LinkLost, Transport, open_transport
-from msgs import DeviceDiagnostics, RobotInfo, RobotOdometry, VelocityCommand
+from msgs import RobotInfo, RobotOdometry, VelocityCommand
 
 
 @dataclass
@@ -43,7 +43,7 @@ class ArcosOptions:
     stream_encoders: bool = False
 
 
-class ArcosDriver:
+class ArcosDriver(LinkDiagnostics):
     """One Pioneer over one link (see the module docstring)."""
 
     device = "arcos"
@@ -72,7 +72,6 @@ class ArcosDriver:
         self._backoff = self.opt.reconnect_initial_s
         self._pending: list[object] = []
         self._last_seen_ns = 0
-        self._rate_mark = (0.0, 0)
 
     # -- connection -----------------------------------------------------------------
     def open(self) -> RobotInfo | None:
@@ -298,26 +297,8 @@ class ArcosDriver:
                 self._t.close()
                 self._t = None
 
-    def diagnostics(self, stamp_ns: int) -> DeviceDiagnostics:
-        s = self.codec.stats
-        now = time.monotonic()
-        t0, n0 = self._rate_mark
-        rate = (s.frames_ok - n0) / (now - t0) if t0 and now > t0 else 0.0
-        self._rate_mark = (now, s.frames_ok)
-        return DeviceDiagnostics(
-            stamp_ns=stamp_ns,
-            device=self.device,
-            connected=self.connected,
-            frames_ok=s.frames_ok,
-            bad_checksums=s.bad_checksums,
-            resyncs=s.resyncs,
-            bytes_skipped=s.bytes_skipped,
-            frames_lost=s.malformed,
-            reconnects=self.reconnects,
-            last_seen_ns=self._last_seen_ns,
-            rate_hz=rate,
-            last_error=self.last_error,
-        )
+    def _frames_lost(self, stats: CodecStats) -> int:
+        return stats.malformed  # ARCOS has no sequence numbers: packets that failed to decode
 
 
 __all__ = ["ArcosDriver", "ArcosOptions", "SIP_MOVING"]

@@ -13,13 +13,13 @@ from typing import Any
 
 import can
 
-from drivers.base import Clock, DeviceError, RawHook, wall_clock_ns
+from drivers.base import Clock, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
 from drivers.irboard.canframe import SAMPLE_ID_BASE, pack_set_rate
 from drivers.irboard.codec import IrCanCodec, IrSerialCodec
 from drivers.irboard.convert import IrBoardConfig
 from drivers.irboard.serialframe import set_rate_command
 from drivers.stream import StreamDriver
-from msgs import DeviceDiagnostics, IrScan
+from msgs import IrScan
 
 
 class IrSerialDriver(StreamDriver):
@@ -45,7 +45,7 @@ class IrSerialDriver(StreamDriver):
         return self.write(set_rate_command(self.config.board_id, rate_hz))
 
 
-class IrCanDriver:
+class IrCanDriver(LinkDiagnostics):
     """One board on a CAN bus reached through python-can (see the module docstring)."""
 
     device = "ir"
@@ -78,7 +78,6 @@ class IrCanDriver:
         self._retry_at = 0.0
         self._backoff = 0.25
         self._last_seen_ns = 0
-        self._rate_mark = (0.0, 0)
 
     def open(self) -> None:
         kw = dict(self.bus_kwargs)
@@ -170,24 +169,3 @@ class IrCanDriver:
             except (can.CanError, OSError):
                 pass
             self.bus = None
-
-    def diagnostics(self, stamp_ns: int) -> DeviceDiagnostics:
-        s = self.codec.stats
-        now = time.monotonic()
-        t0, n0 = self._rate_mark
-        rate = (s.frames_ok - n0) / (now - t0) if t0 and now > t0 else 0.0
-        self._rate_mark = (now, s.frames_ok)
-        return DeviceDiagnostics(
-            stamp_ns=stamp_ns,
-            device=self.device,
-            connected=self.connected,
-            frames_ok=s.frames_ok,
-            bad_checksums=s.bad_checksums,
-            resyncs=s.resyncs,
-            bytes_skipped=s.bytes_skipped,
-            frames_lost=s.frames_lost,
-            reconnects=self.reconnects,
-            last_seen_ns=self._last_seen_ns,
-            rate_hz=rate,
-            last_error=self.last_error,
-        )

@@ -20,7 +20,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         'mapping device names to port paths (e.g. {"arcos": "/tmp/hilnav-fake-x/arcos"}) once '
         "they are ready, then runs until SIGINT/SIGTERM or --duration.",
     )
-    p.add_argument("--config", help="robot TOML file (devices, geometry, noise)")
+    p.add_argument(
+        "--config",
+        help="robot TOML file: name, [simulation], enabled devices, IR board, rates "
+        "(options given here win over the file)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of every random process")
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     p.add_argument("--plan", default="office", help="floor plan: paper_room, office, open_field")
