@@ -297,7 +297,8 @@ class Daemon:
         self.zenoh = zenoh or cfg.zenoh.settings()
         self.log_path = Path(log_path) if log_path else None
         self.stats = DaemonStats()
-        self._map_q: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=queue_size)
+        self._map_q: queue.Queue[tuple[str, Any, int]] = queue.Queue(maxsize=queue_size)
+        self._recv_ns = 0
         self.pipeline = Pipeline(cfg, mapping_sink=self._to_mapping)
         self._q: queue.Queue[_Item] = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()
@@ -375,6 +376,9 @@ class Daemon:
                 "seed": str(cfg.simulation.seed) if self.fake is not None else "",
                 "services": ",".join(self.pipeline.services),
             }
+            src = Path(cfg.source)
+            if cfg.source != "<defaults>" and src.is_file():
+                meta["config_toml"] = src.read_text(encoding="utf-8")  # for hilnav replay
             self.log = open_log_writer(self.log_path, cfg.log.compression, meta)
         except OSError as exc:
             raise DaemonError(
@@ -408,7 +412,7 @@ class Daemon:
         self._drain()
         mt = getattr(self, "_map_thread", None)
         if mt is not None:
-            self._map_q.put(("", None))  # the mapping thread finishes its queue, then stops
+            self._map_q.put(("", None, 0))  # the mapping thread finishes its queue, then stops
             mt.join(timeout=10.0)
         for drv in self.drivers.values():
             with contextlib.suppress(Exception):
@@ -505,7 +509,7 @@ class Daemon:
     # -- the mapping thread --------------------------------------------------------------------------
     def _to_mapping(self, topic: str, msg: Any) -> None:
         try:
-            self._map_q.put_nowait((topic, msg))
+            self._map_q.put_nowait((topic, msg, self._recv_ns))
         except queue.Full:
             self.stats.dropped += 1
 
@@ -513,7 +517,7 @@ class Daemon:
         mapping = self.pipeline.mapping
         assert mapping is not None
         while True:
-            topic, msg = self._map_q.get()
+            topic, msg, recv_ns = self._map_q.get()
             if msg is None:
                 return
             try:
@@ -523,7 +527,7 @@ class Daemon:
                 continue
             for t, m in outs:
                 self.pipeline.latest[t] = m
-                self._emit(t, m, time.time_ns(), publish=not self._stop.is_set())
+                self._emit(t, m, recv_ns, publish=not self._stop.is_set())
 
     # -- the service loop --------------------------------------------------------------------------
     def _service_loop(self) -> None:
@@ -561,9 +565,10 @@ class Daemon:
             if topic == "info":
                 self.pipeline.latest["info"] = msg
             self._emit(topic, msg, item.recv_ns, publish)
+            self._recv_ns = item.recv_ns
             outs = self.pipeline.feed(topic, msg)
         for t, m in outs:
-            self._emit(t, m, time.time_ns(), publish)
+            self._emit(t, m, item.recv_ns, publish)
 
     def _emit(self, topic: str, msg: Any, log_ns: int, publish: bool = True) -> None:
         if publish and topic in PUBLISHED and self.bus is not None:
@@ -574,18 +579,17 @@ class Daemon:
                 self.errors.append(f"publish {topic}: {exc}")
         self._log(f"/{self.robot}/{topic}", msg, log_ns)
 
-    def _log(self, mcap_topic: str, msg: Any, recv_ns: int) -> None:
-        """Log time = the message's own stamp (for device data the time its bytes were
-        read, for estimates the time of the data they describe), so every topic of the
-        log shares one time base however late the loop handled it; publish time = when
-        the daemon handled it. cmd_vel from the bus: its arrival time for both."""
+    def _log(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
+        """Log time = when the daemon received the message (for a service output: when
+        it received the input that caused it, as ``hilnav replay`` does); publish time =
+        the message's own stamp (for device data the time its bytes were read)."""
         if self.log is None:
             return
         stamp = getattr(msg, "stamp_ns", None)
-        if not isinstance(stamp, int) or stamp <= 0 or mcap_topic.endswith("/cmd_vel"):
-            stamp = recv_ns
+        if not isinstance(stamp, int) or stamp <= 0:
+            stamp = None
         try:
-            self.log.write(mcap_topic, msg, stamp, recv_ns)
+            self.log.write(mcap_topic, msg, log_ns, stamp)
             self.stats.logged += 1
         except (OSError, ValueError) as exc:
             self.errors.append(f"log {mcap_topic}: {exc}")
