@@ -4,12 +4,13 @@ Prediction (eq. 2-4) on every odometry step: the wheel displacements (dl, dr) �
 from the robot's odometry pose deltas with the configured wheel base, fusion.models — with
 independent wheel noise k^2 |d| + floor^2, give the step u = (ds, dtheta) and its
 covariance Q_u = J Q_wheels J^T (eq. 1), plus (beta dtheta)^2 on dtheta for the wheel
-base's uncertainty while turning (beta = 0.1, as ir-grid-mapping eq. 4 found). If the gyro reported over the same interval, its
-heading change dtheta_g (bias learnt at rest removed; variance (gamma dtheta_g)^2 +
-arw^2 dt + (bias_sigma dt)^2) is a second measurement of dtheta: it is fused into u
-first (Kalman update of the input: innovation dtheta_g - dtheta, S = Q_u[1,1] + R_g),
-which is exact for an increment measurement, unlike treating the drifting gyro angle as
-an absolute heading. Then x = f(x, u), P = F P F^T + G Q_u G^T (eq. 4, A = F, W = G).
+base's uncertainty while turning (beta = 0.1, as ir-grid-mapping eq. 4 found). If the
+gyro reported over the same interval, its heading change dtheta_g (bias learnt at rest
+removed; variance (gamma dtheta_g)^2 + arw^2 dt + (bias_sigma dt)^2) is a second
+measurement of dtheta: it is fused into u first (Kalman update of the input: innovation
+dtheta_g - dtheta, S = Q_u[1,1] + R_g), which is exact for an increment measurement,
+unlike treating the drifting gyro angle as an absolute heading. Then x = f(x, u),
+P = F P F^T + G Q_u G^T (eq. 4, A = F, W = G).
 
 Updates (eq. 4), Joseph form P = (I - K H) P (I - K H)^T + K R K^T, symmetrised, with a
 Cholesky check that repairs (and counts) a covariance that lost positive definiteness:
@@ -19,7 +20,13 @@ Cholesky check that repairs (and counts) a covariance that lost positive definit
   (gps_no_fix) and skipped. A fix whose stamp is older than the filter time by more than
   ``gps_max_lag_s``, or not newer than the previous fix, is rejected and counted
   (out_of_order_gps); a fix within the lag is applied now with R inflated by
-  (speed x lag)^2, the distance driven meanwhile.
+  (speed x lag)^2, the distance driven meanwhile. A receiver's error is not white: it
+  wanders with a correlation time of minutes (satellite geometry, ionosphere), so fixes
+  taken every second are far from independent and an EKF treating them as white grows
+  over-confident (its 3-sigma box stops containing the truth, the very point ekf-vs-cp
+  makes). ``gps_error_correlation_s`` = tau > 0 scales R by max(1, tau / dt), dt the time
+  since the last fix used: the fixes of one correlation time together carry about the
+  information of one. Off (0) by default; bench/pose_ekf.py shows both.
 - absolute heading (``update_heading``, e.g. a compass or an aligned gyro).
 
 Gating: every measurement's squared Mahalanobis distance (NIS) nu^T S^-1 nu is compared
@@ -31,6 +38,10 @@ gyro_rejected, heading_rejected). ``gate_probability=None`` turns gating off.
 Timeouts: a sensor silent for longer than its timeout (relative to the odometry stamps)
 is flagged stale (``gps_stale``, ``gyro_stale``; transitions counted) and the filter
 predicts on odometry alone. Odometry not newer than the last one is counted and skipped.
+
+Initial pose: ``initial`` (or ``set_pose``); without one, the first GPS fix sets x, y
+and the heading stays at 0 with ``initial_sigma_theta_rad`` — give the start heading with
+``set_pose`` when it is not east (the EKF cannot find a wholly unknown heading).
 
 Output: ``PoseEstimate`` (frame ``map``) and ``bounds(k=3)`` -> ``PoseBox`` with the
 k-sigma interval of each coordinate, to compare with constraint propagation's boxes.
@@ -93,6 +104,7 @@ class PoseEkfParams:
     gps_timeout_s: float = 3.0
     gps_max_lag_s: float = 0.25
     gps_lever_m: tuple[float, float] = (0.0, 0.0)
+    gps_error_correlation_s: float = 0.0
     init_from_gps: bool = True
     gate_probability: float | None = 0.99
     initial_sigma_xy_m: float = 0.01
@@ -107,10 +119,10 @@ class PoseEkfParams:
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"PoseEkfParams.{name} must be finite and > 0, got {v!r}")
         for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "turn_noise_fraction",
-                     "gyro_gamma",
-                     "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps", "gps_min_sigma_m",
-                     "gps_max_lag_s", "initial_sigma_xy_m", "initial_sigma_theta_rad",
-                     "bias_window_s", "bias_min_rest_s"):  # fmt: skip
+                     "gyro_gamma", "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps",
+                     "gps_min_sigma_m", "gps_max_lag_s", "gps_error_correlation_s",
+                     "initial_sigma_xy_m", "initial_sigma_theta_rad", "bias_window_s",
+                     "bias_min_rest_s"):  # fmt: skip
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"PoseEkfParams.{name} must be finite and >= 0, got {v!r}")
@@ -175,6 +187,7 @@ class PoseEkf:
         self._initial = initial
         self._speed_mps = 0.0
         self._last_gps_ns: int | None = None
+        self._last_gps_used_ns: int | None = None
         self.reset(initial)
         self._count.resets = 0
 
@@ -200,6 +213,7 @@ class PoseEkf:
         self._odo.reset()
         self._gyro.reset()
         self._last_gps_ns = None
+        self._last_gps_used_ns = None
         self._speed_mps = 0.0
         self._count.resets += 1
 
@@ -452,11 +466,18 @@ class PoseEkf:
             self._pose_set = True
             self._count.gps_init += 1
             return self.estimate()
+        tau = p.gps_error_correlation_s
+        if tau > 0.0 and self._last_gps_used_ns is not None:
+            gap_s = (msg.stamp_ns - self._last_gps_used_ns) * NS
+            r = r * max(1.0, tau / max(gap_s, 1e-3))
         d = self._speed_mps * abs(lag_s)
         if d > 0.0:
             r = r + np.eye(2) * d * d
         res = self.update_position(z, r, "gps")
-        return self.estimate() if res.accepted else None
+        if not res.accepted:
+            return None
+        self._last_gps_used_ns = msg.stamp_ns
+        return self.estimate()
 
     # -- diagnostics -----------------------------------------------------------------
     def stale(self, now_ns: int) -> dict[str, bool]:

@@ -250,3 +250,15 @@ def test_fused_heading_beats_encoder_on_the_fakes_models():
     e_fused = abs(wrap_angle(fused.theta - robot.pose.theta))
     assert e_fused < e_enc / 3
     assert fused.variance > enc.params.initial_sigma_rad**2  # grows, never collapses
+
+
+def test_gyro_delta_spanning_a_gap_before_the_step_is_not_used():
+    f = HeadingFilter(HeadingParams(gyro_timeout_s=0.5))
+    f.feed(gyro(0, 0.0))
+    f.feed(odo(0, 0, 0, 0))
+    f.feed(odo(900, 0.3, 0, 0.0))  # gyro silent: encoder only
+    f.feed(gyro(1000, 0.5))  # 0.5 rad over the whole second, not over the last 0.1 s
+    est = f.feed(odo(1000, 0.34, 0, 0.0))
+    c = f.counters()
+    assert c["gyro_misaligned"] == 1 and c["steps_fused"] == 0
+    assert est.theta_rad == 0.0

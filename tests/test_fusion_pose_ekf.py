@@ -315,3 +315,21 @@ def test_message_level_drive_with_gyro_and_gps_tracks_a_square():
     err_enc = math.hypot(*(enc_only.x[:2] - truth[:2]))
     assert err < 0.3 and err_enc > 1.0
     assert abs(wrap_angle(ekf.x[2] - truth[2])) < 0.02
+
+
+def test_gps_error_correlation_inflates_r_by_tau_over_gap():
+    def run(tau: float) -> PoseEkf:
+        ekf = PoseEkf(PoseEkfParams(gps_error_correlation_s=tau), initial=Pose2D())
+        ekf.set_pose(Pose2D(), covariance=np.diag([100.0, 100.0, 1e-4]))
+        ekf.feed(odo(0, 0, 0, 0))
+        ekf.feed(fix(0, 1.0, 1.0, std=1.0))  # first fix: R as claimed
+        ekf.feed(odo(1000, 0.0, 0, 0))
+        ekf.feed(fix(1000, 1.0, 1.0, std=1.0))  # 1 s later: R x tau / 1 s
+        return ekf
+
+    white, corr = run(0.0), run(10.0)
+    p0 = 100.0 * 1.0 / 101.0  # after the first fix, identical in both
+    assert white.P[0, 0] == pytest.approx(p0 * 1.0 / (p0 + 1.0), rel=1e-3)
+    assert corr.P[0, 0] == pytest.approx(p0 * 10.0 / (p0 + 10.0), rel=1e-3)
+    with pytest.raises(ValueError, match="gps_error_correlation_s"):
+        PoseEkfParams(gps_error_correlation_s=-1.0)
