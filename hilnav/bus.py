@@ -215,9 +215,12 @@ class Bus:
         k = key(robot, topic)
         pub = self._publishers.get(k)
         if pub is None:
-            enc = zenoh.Encoding.APPLICATION_JSON.with_schema(msgs.schema_name(type(msg)))
-            pub = self.session.declare_publisher(k, encoding=enc)
-            self._publishers[k] = pub
+            with self._lock:
+                pub = self._publishers.get(k)
+                if pub is None:
+                    enc = zenoh.Encoding.APPLICATION_JSON.with_schema(msgs.schema_name(type(msg)))
+                    pub = self.session.declare_publisher(k, encoding=enc)
+                    self._publishers[k] = pub
         pub.put(msgs.encode(msg), attachment=self._attachment)
         with self._lock:
             self.stats.published += 1

@@ -297,7 +297,9 @@ class Daemon:
         self.zenoh = zenoh or cfg.zenoh.settings()
         self.log_path = Path(log_path) if log_path else None
         self.stats = DaemonStats()
-        self.pipeline = Pipeline(cfg)
+        self._map_q: queue.Queue[tuple[str, Any, int]] = queue.Queue(maxsize=queue_size)
+        self._recv_ns = 0
+        self.pipeline = Pipeline(cfg, mapping_sink=self._to_mapping)
         self._q: queue.Queue[_Item] = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -347,6 +349,10 @@ class Daemon:
             self._loop_thread = threading.Thread(target=self._service_loop, name="services")
             self._loop_thread.daemon = True
             self._loop_thread.start()
+            if self.pipeline.mapping is not None:
+                self._map_thread = threading.Thread(target=self._mapping_loop, name="mapping")
+                self._map_thread.daemon = True
+                self._map_thread.start()
             self.bus.declare_alive()
         except BaseException:
             self.stop()
@@ -370,6 +376,9 @@ class Daemon:
                 "seed": str(cfg.simulation.seed) if self.fake is not None else "",
                 "services": ",".join(self.pipeline.services),
             }
+            src = Path(cfg.source)
+            if cfg.source != "<defaults>" and src.is_file():
+                meta["config_toml"] = src.read_text(encoding="utf-8")  # for hilnav replay
             self.log = open_log_writer(self.log_path, cfg.log.compression, meta)
         except OSError as exc:
             raise DaemonError(
@@ -401,6 +410,10 @@ class Daemon:
         if loop is not None:
             loop.join(timeout=5.0)
         self._drain()
+        mt = getattr(self, "_map_thread", None)
+        if mt is not None:
+            self._map_q.put(("", None, 0))  # the mapping thread finishes its queue, then stops
+            mt.join(timeout=10.0)
         for drv in self.drivers.values():
             with contextlib.suppress(Exception):
                 drv.close()
@@ -493,6 +506,29 @@ class Daemon:
         if robot != self.robot:
             self._put(f"other/{robot}/pose_box", msg)
 
+    # -- the mapping thread --------------------------------------------------------------------------
+    def _to_mapping(self, topic: str, msg: Any) -> None:
+        try:
+            self._map_q.put_nowait((topic, msg, self._recv_ns))
+        except queue.Full:
+            self.stats.dropped += 1
+
+    def _mapping_loop(self) -> None:
+        mapping = self.pipeline.mapping
+        assert mapping is not None
+        while True:
+            topic, msg, recv_ns = self._map_q.get()
+            if msg is None:
+                return
+            try:
+                outs = mapping.feed(topic, msg)
+            except Exception as exc:  # noqa: BLE001 - a mapping bug must not stop the robot
+                self.errors.append(f"mapping: {exc!r}")
+                continue
+            for t, m in outs:
+                self.pipeline.latest[t] = m
+                self._emit(t, m, recv_ns, publish=not self._stop.is_set())
+
     # -- the service loop --------------------------------------------------------------------------
     def _service_loop(self) -> None:
         self._next_diag = time.monotonic() + self.cfg.diagnostics_period_s
@@ -529,9 +565,10 @@ class Daemon:
             if topic == "info":
                 self.pipeline.latest["info"] = msg
             self._emit(topic, msg, item.recv_ns, publish)
+            self._recv_ns = item.recv_ns
             outs = self.pipeline.feed(topic, msg)
         for t, m in outs:
-            self._emit(t, m, time.time_ns(), publish)
+            self._emit(t, m, item.recv_ns, publish)
 
     def _emit(self, topic: str, msg: Any, log_ns: int, publish: bool = True) -> None:
         if publish and topic in PUBLISHED and self.bus is not None:
@@ -543,11 +580,16 @@ class Daemon:
         self._log(f"/{self.robot}/{topic}", msg, log_ns)
 
     def _log(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
+        """Log time = when the daemon received the message (for a service output: when
+        it received the input that caused it, as ``hilnav replay`` does); publish time =
+        the message's own stamp (for device data the time its bytes were read)."""
         if self.log is None:
             return
         stamp = getattr(msg, "stamp_ns", None)
+        if not isinstance(stamp, int) or stamp <= 0:
+            stamp = None
         try:
-            self.log.write(mcap_topic, msg, log_ns, stamp if isinstance(stamp, int) else None)
+            self.log.write(mcap_topic, msg, log_ns, stamp)
             self.stats.logged += 1
         except (OSError, ValueError) as exc:
             self.errors.append(f"log {mcap_topic}: {exc}")

@@ -16,6 +16,7 @@ Wiring (see hilnav.services for each adapter):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from hilnav.config import RobotConfig
@@ -27,8 +28,14 @@ INPUT_TOPICS = ("odometry", "gyro", "gps", "ir")
 class Pipeline:
     """Deterministic service graph of one robot (see the module docstring)."""
 
-    def __init__(self, config: RobotConfig) -> None:
+    def __init__(
+        self, config: RobotConfig, mapping_sink: Callable[[str, Any], None] | None = None
+    ) -> None:
+        """``mapping_sink``: instead of running the mapping service inline, hand it its
+        inputs (heading, ir) in order; the daemon runs it in its own thread so a slow
+        association step never delays the pose. Same inputs in the same order: same map."""
         self.config = config
+        self.mapping_sink = mapping_sink
         sv = config.services
         self.heading = HeadingAdapter(config) if sv.heading.enabled else None
         self.pose = PoseAdapter(config) if sv.pose.enabled else None
@@ -58,7 +65,10 @@ class Pipeline:
         if self.mapping is not None:
             for t, m in [*out, (topic, msg)]:
                 if t in ("heading", "ir"):
-                    out += self.mapping.feed(t, m)
+                    if self.mapping_sink is not None:
+                        self.mapping_sink(t, m)
+                    else:
+                        out += self.mapping.feed(t, m)
         for t, m in out:
             self.latest[t] = m
         return out

@@ -244,13 +244,48 @@ def analyse(log: Path, out: Path) -> Path:
             capture_output=True,
             text=True,
         )
-        sys.stdout.write(r.stdout)
-        if r.returncode == 0:
-            found = sorted(out.glob("*summary*.json"))
-            if found:
-                return found[-1]
-        sys.stderr.write(r.stderr)
+        if r.returncode == 0 and (out / "summary.json").is_file():
+            _digest(json.loads((out / "summary.json").read_text()))
+            return out / "summary.json"
+        sys.stderr.write(r.stderr[-2000:])
     return builtin_summary(log, out)
+
+
+def _digest(summary: dict[str, Any]) -> None:
+    """A few figures of ``hilnav analyze``'s summary, one line each."""
+
+    def get(*keys: str) -> Any:
+        o: Any = summary
+        for k in keys:
+            if not isinstance(o, dict) or k not in o:
+                return None
+            o = o[k]
+        return o
+
+    for robot in sorted(get("robots") or {}):
+        r = ("robots", robot)
+        lines = []
+        for src in ("pose", "heading", "odometry"):
+            e = get(*r, "paths", src, "position_error_m")
+            d = get(*r, "paths", src, "heading_drift", "slope_deg_per_m")
+            if e:
+                lines.append(
+                    f"{src:8s} path error mean {e.get('mean', 0):.3f} m, final "
+                    f"{e.get('final', 0):.3f} m; heading drift {d or 0:.3f} deg/m"
+                )
+        m = get(*r, "map", "match_ratio")
+        if m is not None:
+            lines.append(f"map      match ratio {m:.3f} against the {get(*r, 'map', 'plan')} plan")
+        box = get(*r, "cp_boxes")
+        if isinstance(box, dict):
+            c, a = box.get("contained_fraction"), box.get("area_m2")
+            if c is not None:
+                med = a.get("median") if isinstance(a, dict) else a
+                lines.append(
+                    f"CP boxes contain the truth {100 * c:.1f} % (median area {med:.1f} m2)"
+                )
+        for line in lines:
+            print(f"  {robot} {line}")
 
 
 def builtin_summary(log: Path, out: Path) -> Path:
