@@ -182,13 +182,14 @@ def simulate(
     return Run(
         steps=steps,
         distance_m=robot.distance_m,
-        final_heading_error_deg=math.degrees(
-            wrap_angle(last.heading.theta_rad - last.truth.theta)
-        ),
+        final_heading_error_deg=math.degrees(wrap_angle(last.heading.theta_rad - last.truth.theta)),
         final_position_error_m=math.hypot(
             last.heading.pose.x - last.truth.x, last.heading.pose.y - last.truth.y
         ),
-        extra={"gyro_scale": gyro.scale, "gyro_bias_residual_degps": math.degrees(gyro.bias_radps - bias)},
+        extra={
+            "gyro_scale": gyro.scale,
+            "gyro_bias_residual_degps": math.degrees(gyro.bias_radps - bias),
+        },
     )
 
 

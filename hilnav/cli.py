@@ -24,6 +24,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.analyze",
     "hilnav.commands.replay",
     "hilnav.commands.importer",
+    "hilnav.commands.fleet",
 )
 
 

@@ -82,7 +82,7 @@ class IrDevice:
     rate_hz: int = field(default=20, metadata=_check(lambda v: 1 <= v <= 1000, "must be 1..1000"))
     adc_bits: int = field(default=10, metadata=_choice(10, 12))
     vref_v: float = field(default=5.0, metadata=_positive("5.0"))
-    median_window: int = field(default=1, metadata=_check(lambda v: 1 <= v <= 15, "1..15"))
+    median_window: int = field(default=3, metadata=_check(lambda v: 1 <= v <= 15, "1..15"))
 
 
 @dataclass(frozen=True)
@@ -147,31 +147,33 @@ class Geometry:
 
 @dataclass(frozen=True)
 class Noise:
-    """Sensor noise for the filters (ir-grid-mapping eq. 1-4 names where they apply)."""
+    """Sensor noise (1-sigma) for the filters: heading filter (ir-grid-mapping eq. 2, 4)
+    and pose EKF (ekf-vs-cp eq. 1-4)."""
 
     encoder_alpha_rad_per_m: float = field(default=3.0 * DEG, metadata=_positive("0.05"))
     encoder_beta: float = field(default=0.1, metadata=_positive("0.1"))
     gyro_gamma: float = field(default=0.02, metadata=_positive("0.02"))
-    gyro_noise_radps_rthz: float = field(default=0.0005, metadata=_positive("0.0005"))
-    encoder_sigma_m_per_m: float = field(default=0.02, metadata=_positive("0.02"))
-    gps_sigma_m: float = field(default=2.0, metadata=_positive("2.0"))
+    gyro_arw_rad_per_sqrt_s: float = field(default=0.00026, metadata=_positive("0.00026"))
+    wheel_noise_m_per_sqrt_m: float = field(default=0.005, metadata=_positive("0.005"))
+    gps_uere_m: float = field(default=4.0, metadata=_positive("4.0"))
 
 
 # -- services ----------------------------------------------------------------------------
 @dataclass(frozen=True)
 class HeadingService:
-    """Encoder + gyro heading filter (fusion); needed by mapping."""
+    """Encoder + gyro heading filter (fusion.heading); needed by mapping."""
 
     enabled: bool = True
-    gyro_bias_calibration_s: float = field(default=2.0, metadata=_check(lambda v: v >= 0, ">= 0"))
+    bias_min_rest_s: float = field(default=0.5, metadata=_check(lambda v: v >= 0, ">= 0"))
 
 
 @dataclass(frozen=True)
 class PoseService:
-    """Pose EKF (fusion): odometry + gyro + GPS, frame "map"."""
+    """Pose EKF (fusion.pose_ekf): odometry + gyro + GPS, frame "map"."""
 
     enabled: bool = True
     use_gps: bool = True
+    init_from_gps: bool = False  # true: start where the first GPS fix says, not initial_pose
 
 
 @dataclass(frozen=True)
@@ -192,10 +194,20 @@ class MappingService:
 
 @dataclass(frozen=True)
 class LocalizationService:
-    """Guaranteed CP localization (pose boxes); needs the localization package."""
+    """Guaranteed CP localization (localization.cp): pose boxes from bounded errors."""
 
     enabled: bool = True
     publish_every_s: float = field(default=0.5, metadata=_positive("0.5"))
+    window: int = field(default=40, metadata=_check(lambda v: 0 <= v <= 1000, "0..1000"))
+    wheel_abs_bound_m: float = field(default=0.003, metadata=_positive("0.003"))
+    wheel_rel_bound: float = field(default=0.01, metadata=_fraction())
+    wheelbase_bound_m: float = field(default=0.01, metadata=_check(lambda v: v >= 0, ">= 0"))
+    gps_bound_m: float = field(default=6.0, metadata=_positive("6.0"))
+    gps_outliers: int = field(default=2, metadata=_check(lambda v: v >= 0, ">= 0"))
+    gyro_bound_deg: float = field(default=1.0, metadata=_positive("1.0"))
+    gyro_drift_bound_degps: float = field(default=0.3, metadata=_check(lambda v: v >= 0, ">= 0"))
+    initial_bound_m: float = field(default=0.05, metadata=_check(lambda v: v >= 0, ">= 0"))
+    initial_bound_deg: float = field(default=1.0, metadata=_check(lambda v: v >= 0, ">= 0"))
 
 
 @dataclass(frozen=True)

@@ -5,8 +5,7 @@ odometry, gyro, gps, ir; others are ignored) and returns the ``(topic, msg)`` ou
 caused, in a fixed order: heading, pose, pose_box, association, map. No threads, no
 clocks (time is the messages' stamps), seeded randomness: the same inputs in the same
 order give the same outputs, which is what ``hilnav replay`` relies on. Each service is
-switched on or off by ``[services.*].enabled``; a service whose package is not there yet
-is listed in :attr:`Pipeline.unavailable` and skipped.
+switched on or off by ``[services.*].enabled``.
 
 Wiring (see hilnav.services for each adapter):
 
@@ -20,7 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 from hilnav.config import RobotConfig
-from hilnav.services import MappingAdapter, make_heading, make_localization, make_pose
+from hilnav.services import HeadingAdapter, LocalizationAdapter, MappingAdapter, PoseAdapter
 
 INPUT_TOPICS = ("odometry", "gyro", "gps", "ir")
 
@@ -31,14 +30,9 @@ class Pipeline:
     def __init__(self, config: RobotConfig) -> None:
         self.config = config
         sv = config.services
-        self.unavailable: list[str] = []
-        self.heading = make_heading(config) if sv.heading.enabled else None
-        self.pose = make_pose(config) if sv.pose.enabled else None
-        self.localization = None
-        if sv.localization.enabled:
-            self.localization = make_localization(config)
-            if self.localization is None:
-                self.unavailable.append("localization")
+        self.heading = HeadingAdapter(config) if sv.heading.enabled else None
+        self.pose = PoseAdapter(config) if sv.pose.enabled else None
+        self.localization = LocalizationAdapter(config) if sv.localization.enabled else None
         self.mapping = MappingAdapter(config) if sv.mapping.enabled else None
         self.latest: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
@@ -57,10 +51,8 @@ class Pipeline:
         out: list[tuple[str, Any]] = []
         if self.heading is not None:
             out += self.heading.feed(topic, msg)
-        pose_in = [(topic, msg), *out]
         if self.pose is not None:
-            for t, m in pose_in:
-                out += self.pose.feed(t, m)
+            out += self.pose.feed(topic, msg)
         if self.localization is not None:
             out += self.localization.feed(topic, msg)
         if self.mapping is not None:

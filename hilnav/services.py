@@ -1,41 +1,46 @@
 """The services the pipeline runs, each behind one small adapter: ``feed(topic, msg)``.
 
-An adapter turns the device messages it needs into the calls of one pure service and
-returns ``(topic, msg)`` outputs; it keeps no clock (time = message stamps) and no
-threads, so the same input gives the same output (replay relies on it).
+An adapter turns the device messages it needs into the message-level calls of one pure
+service and returns ``(topic, msg)`` outputs; it keeps no clock (time = message stamps)
+and no threads, so the same input gives the same output (replay relies on it).
 
-- :class:`HeadingAdapter`: encoder + gyro heading (ir-grid-mapping eq. 1-4). Uses the
-  fusion package's heading filter when it is there; until then :class:`InterimHeading`,
-  a minimal version of the same equations, so mapping can run (the hook is
-  :func:`make_heading`).
-- :class:`InterimPose`: a PoseEstimate from the heading filter (source "heading") until
-  the fusion pose EKF (ekf-vs-cp eq. 1-4) is wired in :func:`make_pose`.
+- :class:`HeadingAdapter`: fusion.heading.HeadingFilter, encoder + gyro heading
+  (ir-grid-mapping eq. 1-4) -> ``heading`` at every odometry message.
+- :class:`PoseAdapter`: fusion.pose_ekf.PoseEkf, odometry + gyro + GPS (ekf-vs-cp eq.
+  1-4) -> ``pose`` (frame "map") at every odometry message.
+- :class:`LocalizationAdapter`: localization.cp.CPLocalizer, guaranteed boxes (ekf-vs-cp
+  eq. 5) from bounded odometry, gyro and GPS errors, plus the other robots' boxes ->
+  ``pose_box``, at most every ``publish_every_s`` of message time. The gyro is given to
+  it once per odometry step (its latest sample), not at 100 Hz: each sample re-solves
+  the window.
 - :class:`MappingAdapter`: IR occupancy grid (eq. 5-6) with or without sample-based data
-  association (eq. 7-8), fed the latest HeadingEstimate and each IrScan; the map is
-  output at most every ``publish_every_s`` of message time.
-- :func:`make_localization`: the CP localizer (pose boxes) when the localization package
-  offers one; None until then.
+  association (eq. 7-8), fed the latest HeadingEstimate and each IrScan -> ``map`` at
+  most every ``publish_every_s`` of message time, and ``association`` reports.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from typing import Any
 
 import numpy as np
 
+from fusion.heading import HeadingFilter, HeadingParams
+from fusion.pose_ekf import PoseEkf, PoseEkfParams
 from hilnav.config import RobotConfig
+from localization.cp import CPConfig, CPLocalizer
 from mapping.association import AssociationConfig, SampleAssociation
 from mapping.export import to_grid_msg
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.ir_inverse import InverseModelConfig, IrInverseModel, beams_from_scan
 from msgs import (
+    GpsFix,
     GyroSample,
     HeadingEstimate,
+    Interval,
     IrScan,
     Pose2D,
-    PoseEstimate,
+    PoseBox,
     RobotOdometry,
     wrap_angle,
 )
@@ -43,132 +48,233 @@ from msgs import (
 Outputs = list[tuple[str, Any]]
 
 
-def _has(module: str) -> bool:
-    try:
-        return importlib.util.find_spec(module) is not None
-    except ModuleNotFoundError:
-        return False
+def initial_pose(cfg: RobotConfig) -> Pose2D:
+    x, y, yaw_deg = cfg.initial_pose
+    return Pose2D(x, y, wrap_angle(math.radians(yaw_deg)))
 
 
-class InterimHeading:
-    """Encoder + gyro heading Kalman filter, ir-grid-mapping eq. 1-4 (interim version).
+class GyroRestamp:
+    """Strictly increasing gyro stamps, at least a quarter of the nominal period apart.
 
-    Per odometry step: the encoder's heading change u_enc with variance
-    sigma_w^2 = (alpha dd)^2 + (beta du_enc)^2 (eq. 2) is corrected by the gyro's heading
-    change over the same interval, variance (gamma du_gyro)^2 (eq. 3-4); the fused
-    heading's variance grows by the fused increment's variance. The position follows the
-    encoder distance along the fused heading. The gyro's bias is re-estimated whenever
-    the odometry says the robot stands still (zero-velocity update), so the turn-on bias
-    of a cheap gyro does not become heading drift.
+    The stream drivers stamp every message decoded from one read with that read's time,
+    so two gyro packets that arrived together share a stamp, or come microseconds apart.
+    fusion.increments.GyroDeltas drops a sample whose stamp is not newer, and takes an
+    angle change that is large for a tiny interval for a discontinuity (and replaces it
+    by rate x dt), which loses real rotation. Spacing such samples a quarter period apart
+    keeps every angle difference with a plausible interval (the restamped times catch up
+    with the real ones at the next gap); the angles themselves are untouched. Deterministic: depends only on the input sequence.
     """
+
+    def __init__(self, rate_hz: float) -> None:
+        self.spacing_ns = int(0.25e9 / rate_hz)
+        self._last: int | None = None
+
+    def __call__(self, g: GyroSample) -> GyroSample:
+        last = self._last
+        if last is not None and g.stamp_ns < last + self.spacing_ns:
+            if g.stamp_ns < last - 1_000_000_000:
+                self._last = g.stamp_ns  # a real jump back (clock set): follow it
+                return g
+            g = GyroSample(last + self.spacing_ns, g.rate_radps, g.angle_rad, g.angle_wrapped_rad)
+        self._last = g.stamp_ns
+        return g
+
+
+class GyroFirst:
+    """Feeds a filter the gyro samples of an interval before the odometry that ends it.
+
+    Messages reach the pipeline in arrival order; after a stall (a busy machine) a burst
+    of SIPs and a burst of gyro packets arrive, each burst with one late stamp, in either
+    order. The fusion filters fuse the gyro's change *between two odometry messages* with
+    the encoders' change over the same interval, so the intervals must match:
+
+    - an odometry message is held until a gyro sample strictly newer arrives (every gyro
+      sample up to its time has then been given) or a newer odometry message does (the
+      gyro is silent: carry on without it);
+    - of several odometry messages with the same stamp (SIPs read together) only the last
+      is kept: odometry poses are cumulative, so it covers the whole burst;
+    - odometry older than the last one released is dropped (counted).
+
+    Costs at most one gyro period of latency. Deterministic: depends only on the input
+    sequence.
+    """
+
+    def __init__(self) -> None:
+        self.held: RobotOdometry | None = None
+        self._released: int | None = None
+        self.dropped = 0
+
+    def _release(self) -> list[RobotOdometry]:
+        h, self.held = self.held, None
+        if h is None:
+            return []
+        if self._released is not None and h.stamp_ns <= self._released:
+            self.dropped += 1
+            return []
+        self._released = h.stamp_ns
+        return [h]
+
+    def gyro(self, g: GyroSample) -> list[RobotOdometry]:
+        """Odometry to feed before this gyro sample."""
+        if self.held is not None and g.stamp_ns > self.held.stamp_ns:
+            return self._release()
+        return []
+
+    def odometry(self, o: RobotOdometry) -> list[RobotOdometry]:
+        """Odometry to feed now (the held one, if this one is newer)."""
+        h = self.held
+        if h is not None and o.stamp_ns < h.stamp_ns:
+            self.dropped += 1
+            return []
+        out = self._release() if h is not None and o.stamp_ns > h.stamp_ns else []
+        self.held = o
+        if h is not None and o.stamp_ns == h.stamp_ns:
+            self.dropped += 1  # the earlier one of a burst: replaced by this one
+        return out
+
+
+class HeadingAdapter:
+    """fusion.heading.HeadingFilter fed odometry and gyro -> ``heading``."""
 
     def __init__(self, cfg: RobotConfig) -> None:
         n = cfg.noise
-        self.alpha = n.encoder_alpha_rad_per_m
-        self.beta = n.encoder_beta
-        self.gamma = n.gyro_gamma
-        self.gyro_noise = n.gyro_noise_radps_rthz
-        x, y, yaw_deg = cfg.initial_pose
-        self.pose = Pose2D(x, y, wrap_angle(math.radians(yaw_deg)))
-        self.var = math.radians(0.1) ** 2
-        self._odo: RobotOdometry | None = None
-        self._gyro_stamp: int | None = None
-        self._gyro_angle = 0.0  # bias-corrected integral of the rate
-        self._gyro_at_odo: float | None = None
-        self._bias = 0.0
-        self._bias_n = 0
-        self._still = False
+        params = HeadingParams(
+            alpha_rad_per_m=n.encoder_alpha_rad_per_m,
+            beta=n.encoder_beta,
+            gamma=n.gyro_gamma,
+            gyro_arw_rad_per_sqrt_s=n.gyro_arw_rad_per_sqrt_s,
+            bias_min_rest_s=cfg.services.heading.bias_min_rest_s,
+        )
+        self.filter = HeadingFilter(params, initial=initial_pose(cfg))
+        self.restamp = GyroRestamp(cfg.devices.gyro.rate_hz)
+        self.merge = GyroFirst()
 
     def feed(self, topic: str, msg: Any) -> Outputs:
         if isinstance(msg, GyroSample):
-            self._gyro(msg)
-            return []
+            out = self._odometry(self.merge.gyro(msg))
+            self.filter.feed_gyro(self.restamp(msg))
+            return out
         if isinstance(msg, RobotOdometry):
-            est = self._odometry(msg)
-            return [("heading", est)] if est is not None else []
+            return self._odometry(self.merge.odometry(msg))
         return []
 
-    def _gyro(self, g: GyroSample) -> None:
-        if not math.isfinite(g.rate_radps):
-            return
-        if self._still:
-            self._bias_n = min(self._bias_n + 1, 2000)
-            self._bias += (g.rate_radps - self._bias) / self._bias_n
-        if self._gyro_stamp is not None:
-            dt = (g.stamp_ns - self._gyro_stamp) * 1e-9
-            if 0.0 < dt < 0.5:
-                self._gyro_angle += (g.rate_radps - self._bias) * dt
-        self._gyro_stamp = g.stamp_ns
-
-    def _odometry(self, o: RobotOdometry) -> HeadingEstimate | None:
-        prev = self._odo
-        self._odo = o
-        self._still = abs(o.linear_vel_mps) < 1e-6 and abs(o.angular_vel_radps) < 1e-6
-        gyro_now = self._gyro_angle if self._gyro_stamp is not None else None
-        gyro_prev, self._gyro_at_odo = self._gyro_at_odo, gyro_now
-        if prev is None:
-            return HeadingEstimate(o.stamp_ns, self.pose.theta, self.var, self.pose)
-        p0, p1 = prev.pose, o.pose
-        dx, dy = p1.x - p0.x, p1.y - p0.y
-        dd = dx * math.cos(p0.theta) + dy * math.sin(p0.theta)
-        du_enc = wrap_angle(p1.theta - p0.theta)
-        sw2 = (self.alpha * dd) ** 2 + (self.beta * du_enc) ** 2 + 1e-12
-        if gyro_now is not None and gyro_prev is not None:
-            du_gyro = gyro_now - gyro_prev
-            dt = max((o.stamp_ns - prev.stamp_ns) * 1e-9, 0.0)
-            sg2 = (self.gamma * du_gyro) ** 2 + self.gyro_noise**2 * dt + 1e-12
-            k = sw2 / (sw2 + sg2)
-            u = du_enc + k * (du_gyro - du_enc)
-            self.var += sw2 * (1.0 - k)
-        else:
-            u = du_enc
-            self.var += sw2
-        mid = self.pose.theta + 0.5 * u
-        th = wrap_angle(self.pose.theta + u)
-        self.pose = Pose2D(self.pose.x + dd * math.cos(mid), self.pose.y + dd * math.sin(mid), th)
-        return HeadingEstimate(o.stamp_ns, th, self.var, self.pose)
+    def _odometry(self, todo: list[RobotOdometry]) -> Outputs:
+        out: Outputs = []
+        for o in todo:
+            est = self.filter.feed_odometry(o)
+            if est is not None:
+                out.append(("heading", est))
+        return out
 
 
-class InterimPose:
-    """PoseEstimate from the heading filter's pose (until the fusion pose EKF is wired).
-
-    Position variance grows with the distance driven (encoder_sigma_m_per_m per metre)
-    and with the heading variance times the distance squared.
-    """
+class PoseAdapter:
+    """fusion.pose_ekf.PoseEkf fed odometry, gyro and (optionally) GPS -> ``pose``."""
 
     def __init__(self, cfg: RobotConfig) -> None:
-        self.k = cfg.noise.encoder_sigma_m_per_m
-        self._last: Pose2D | None = None
-        self._var_xy = 0.0
+        n, sv = cfg.noise, cfg.services.pose
+        params = PoseEkfParams(
+            wheelbase_m=cfg.geometry.wheel_base_m,
+            wheel_noise_m_per_sqrt_m=n.wheel_noise_m_per_sqrt_m,
+            gyro_gamma=n.gyro_gamma,
+            gyro_arw_rad_per_sqrt_s=n.gyro_arw_rad_per_sqrt_s,
+            gps_uere_m=n.gps_uere_m,
+            gps_lever_m=cfg.geometry.gps_antenna_m,
+            bias_min_rest_s=cfg.services.heading.bias_min_rest_s,
+            init_from_gps=sv.init_from_gps,
+            robot=cfg.name,
+        )
+        self.use_gps = sv.use_gps
+        self.ekf = PoseEkf(params, initial=None if sv.init_from_gps else initial_pose(cfg))
+        self.restamp = GyroRestamp(cfg.devices.gyro.rate_hz)
+        self.merge = GyroFirst()
 
     def feed(self, topic: str, msg: Any) -> Outputs:
-        if topic != "heading" or not isinstance(msg, HeadingEstimate):
+        if isinstance(msg, GyroSample):
+            out = self._odometry(self.merge.gyro(msg))
+            self.ekf.feed_gyro(self.restamp(msg))
+            return out
+        if isinstance(msg, GpsFix):
+            if self.use_gps:
+                self.ekf.feed_gps(msg)  # the next odometry's pose carries the update
+        elif isinstance(msg, RobotOdometry):
+            return self._odometry(self.merge.odometry(msg))
+        return []
+
+    def _odometry(self, todo: list[RobotOdometry]) -> Outputs:
+        out: Outputs = []
+        for o in todo:
+            est = self.ekf.feed_odometry(o)
+            if est is not None:
+                out.append(("pose", est))
+        return out
+
+
+class LocalizationAdapter:
+    """localization.cp.CPLocalizer -> ``pose_box`` (throttled by message time)."""
+
+    def __init__(self, cfg: RobotConfig) -> None:
+        lc = cfg.services.localization
+        p0 = initial_pose(cfg)
+        self.yaw0 = p0.theta
+        config = CPConfig(
+            wheelbase_m=cfg.geometry.wheel_base_m,
+            wheelbase_bound_m=lc.wheelbase_bound_m,
+            wheel_abs_bound_m=lc.wheel_abs_bound_m,
+            wheel_rel_bound=lc.wheel_rel_bound,
+            gps_bound_m=lc.gps_bound_m,
+            gyro_bound_rad=math.radians(lc.gyro_bound_deg),
+            gyro_drift_bound_radps=math.radians(lc.gyro_drift_bound_degps),
+            gyro_offset_rad=0.0,
+            window=lc.window,
+            gps_outliers=lc.gps_outliers,
+            speed_bound_mps=cfg.cmd_vel.max_linear_mps * 2.0,
+            yaw_rate_bound_radps=cfg.cmd_vel.max_angular_radps * 2.0,
+        )
+        b, bth = lc.initial_bound_m, math.radians(lc.initial_bound_deg)
+        box = PoseBox(
+            0,
+            cfg.name,
+            Interval(p0.x - b, p0.x + b),
+            Interval(p0.y - b, p0.y + b),
+            Interval(p0.theta - bth, p0.theta + bth),
+        )
+        self.cp = CPLocalizer(config, robot=cfg.name, initial=box)
+        self.period_ns = int(lc.publish_every_s * 1e9)
+        self._gyro: GyroSample | None = None
+        self._gyro0: float | None = None
+        self._last_ns: int | None = None
+
+    def feed(self, topic: str, msg: Any) -> Outputs:
+        box = None
+        if isinstance(msg, GyroSample):
+            if math.isfinite(msg.angle_rad):
+                if self._gyro0 is None:
+                    self._gyro0 = msg.angle_rad
+                self._gyro = msg
             return []
-        p = msg.pose
-        if self._last is not None:
-            d = math.hypot(p.x - self._last.x, p.y - self._last.y)
-            self._var_xy += (self.k**2) * d + msg.variance_rad2 * d * d
-        self._last = p
-        v = self._var_xy
-        cov = (v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, msg.variance_rad2)
-        return [("pose", PoseEstimate(msg.stamp_ns, p, cov, "map", "heading"))]
+        if isinstance(msg, RobotOdometry):
+            box = self.cp.feed_odometry(msg)
+            g = self._gyro
+            if g is not None and self.cp.started and self._gyro0 is not None:
+                # map heading = initial yaw + the gyro's turn since its first sample
+                angle = self.yaw0 + (g.angle_rad - self._gyro0)
+                box = self.cp.feed_gyro(
+                    GyroSample(g.stamp_ns, g.rate_radps, angle, g.angle_wrapped_rad)
+                )
+                self._gyro = None
+        elif isinstance(msg, GpsFix):
+            box = self.cp.feed_gps(msg)
+        if box is None:
+            return []
+        if self._last_ns is not None and box.stamp_ns - self._last_ns < self.period_ns:
+            return []
+        self._last_ns = box.stamp_ns
+        return [("pose_box", box)]
 
-
-def make_heading(cfg: RobotConfig) -> Any:
-    """The heading service. Hook: fusion's heading filter replaces the interim one here."""
-    return InterimHeading(cfg)
-
-
-def make_pose(cfg: RobotConfig) -> Any:
-    """The pose service. Hook: fusion's pose EKF replaces the interim one here."""
-    return InterimPose(cfg)
-
-
-def make_localization(cfg: RobotConfig) -> Any | None:
-    """The CP localizer adapter, or None while the localization package has none."""
-    if not _has("localization.cp"):
-        return None
-    return None  # hook: wire localization's CP localizer once it is on main
+    def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
+        if topic == "pose_box" and isinstance(msg, PoseBox):
+            self.cp.feed_peer_box(msg)
+        return []
 
 
 class MappingAdapter:

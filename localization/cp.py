@@ -119,6 +119,7 @@ class CPLocalizer:
         self._w = _Window()
         self._initial = initial
         self._sol: tuple[IV, IV, IV] | None = None
+        self._pred: tuple[IV, IV, IV] | None = None
         self._dirty = True
         self._soft = True  # dirty for a reason other than a new hard box
         self._last_odom: RobotOdometry | None = None
@@ -156,8 +157,15 @@ class CPLocalizer:
         br = c.wheel_abs_bound_m + c.wheel_rel_bound * abs(dsr)
         bl = c.wheel_abs_bound_m + c.wheel_rel_bound * abs(dsl)
         r, l = IV.around(dsr, br), IV.around(dsl, bl)
+        # Solve the finished window once (its smoothed last state seeds the prediction).
+        if self._soft or self._sol is None:
+            self._solve()
         if len(w.stamps) >= max(c.window, 1) + 1:
             self._slide()
+        x0, y0, th0 = self._latest()
+        dx, dy, dth = odometry_displacement(
+            th0, th0 + (r - l) / self.e, r, l, self.e, c.kappa, c.chord
+        )
         w.stamps.append(int(stamp_ns))
         w.hx.append([-math.inf, math.inf])
         w.hy.append([-math.inf, math.inf])
@@ -165,6 +173,7 @@ class CPLocalizer:
         w.gps.append(None)
         w.dsr.append((float(r.lo), float(r.hi)))
         w.dsl.append((float(l.lo), float(l.hi)))
+        self._pred = (x0 + dx, y0 + dy, th0 + dth)
         self._dirty = self._soft = True
 
     def _slide(self) -> None:
@@ -178,6 +187,7 @@ class CPLocalizer:
         for lst in (w.stamps, w.hx, w.hy, w.hth, w.gps, w.dsr, w.dsl):
             del lst[0]
         self._sol = tuple(v[1:] for v in self._sol)
+        self._soft = False
 
     def _age_s(self, stamp_ns: int) -> float:
         return abs(int(stamp_ns) - self._w.stamps[-1]) * 1e-9
@@ -221,10 +231,13 @@ class CPLocalizer:
         once). Contracts the latest state; returns False (and changes nothing) if the
         measurements are inconsistent with it."""
         x, y, th = self._latest()
-        age = self.cfg.speed_bound_mps * self._age_s(stamp_ns)
+        # A measurement off the state's stamp: the own motion and turn since are bounded.
+        age_s = self._age_s(stamp_ns)
+        grow = self.cfg.speed_bound_mps * age_s  # own motion between state and measurement
+        beta = beta.inflate(self.cfg.yaw_rate_bound_radps * age_s)
         (xi, yi, thi, *_), _ = fixpoint(
             contract_range_bearing,
-            [x, y, th, peer_x.inflate(age), peer_y.inflate(age), rho, beta],
+            [x, y, th, peer_x.inflate(grow), peer_y.inflate(grow), rho, beta],
             tol=self.cfg.tol,
             max_iter=4,
         )
@@ -238,17 +251,32 @@ class CPLocalizer:
         return True
 
     def _latest(self) -> tuple[IV, IV, IV]:
-        """The latest box without a full re-solve: the last solution met with the hard
-        boxes added since (valid, possibly a little wider than a re-solve)."""
+        """The latest box without a window solve when possible: the last solution (or
+        the one-step prediction from it, met with this step's GPS box unless outliers
+        are tolerated) met with the hard boxes added since. Valid, and the window solve
+        at the next step (or :meth:`solve`) brings in the smoothing and relaxation."""
         w = self._w
-        if self._sol is None or self._soft or self._sol[0].lo.shape[0] != len(w.stamps):
-            x, y, th = self._solve()
-            return x[-1], y[-1], th[-1]
-        x, y, th = (v[-1] for v in self._sol)
+        n = len(w.stamps)
+        if self._sol is not None and not self._soft and self._sol[0].lo.shape[0] == n:
+            x, y, th = (v[-1] for v in self._sol)
+        elif self._pred is not None and self._sol is not None and self._sol[0].lo.shape[0] == n - 1:
+            x, y, th = self._pred
+            g = w.gps[-1]
+            if g is not None and self.cfg.gps_outliers == 0:
+                x, y = x & IV.of(g[0], g[1]), y & IV.of(g[2], g[3])
+                if bool(x.is_empty() | y.is_empty()):  # inconsistent fix: let the solver relax
+                    x, y, th = (v[-1] for v in self._solve())
+        else:
+            x, y, th = (v[-1] for v in self._solve())
         hx, hy, hth = (IV.of(*lst[-1]) for lst in (w.hx, w.hy, w.hth))
         if math.isfinite(float(hth.lo)) and math.isfinite(float(hth.hi)):
             hth = align_angle(hth, th.mid())
         return x & hx, y & hy, th & hth
+
+    def solve(self) -> tuple[IV, IV, IV]:
+        """Solve the whole window now; returns the latest box."""
+        x, y, th = self._solve()
+        return x[-1], y[-1], th[-1]
 
     def current(self) -> tuple[IV, IV, IV]:
         """Box (x, y, theta) of the latest state (theta unwrapped). Hard boxes added
@@ -413,22 +441,42 @@ class CPLocalizer:
         self.peers.pop(robot, None)
 
     def feed_relative(self, m: RelativeMeasurement) -> PoseBox | None:
+        return self.feed_relatives([m])
+
+    def feed_relatives(self, ms: list[RelativeMeasurement]) -> PoseBox | None:
+        """Range-bearing measurements to several peers at once (vectorised), each used
+        with that peer's latest box widened by ``speed_bound * |stamp difference|``."""
         if not self.started:
             self._skip("relative_before_start")
             return None
-        peer = self.peers.get(m.target)
-        if peer is None or peer.x.empty or peer.y.empty:
-            self._skip("relative_no_peer_box")
+        use = []
+        for m in ms:
+            peer = self.peers.get(m.target)
+            if peer is None or peer.x.empty or peer.y.empty:
+                self._skip("relative_no_peer_box")
+                continue
+            vals = (m.range_m, m.bearing_rad, m.range_bound_m, m.bearing_bound_rad)
+            if (
+                not all(math.isfinite(v) for v in vals)
+                or m.range_bound_m < 0
+                or m.bearing_bound_rad < 0
+            ):
+                self._skip("relative_invalid")
+                continue
+            use.append((m, peer))
+        if not use:
             return None
-        dt = abs(m.stamp_ns - peer.stamp_ns) * 1e-9
-        grow = self.cfg.speed_bound_mps * dt
-        ok = self.relative(
-            m.stamp_ns,
-            _iv(peer.x).inflate(grow),
-            _iv(peer.y).inflate(grow),
-            IV.around(m.range_m, m.range_bound_m),
-            IV.around(m.bearing_rad, m.bearing_bound_rad),
-        )
+        c, now = self.cfg, self._w.stamps[-1]
+        # Peer box -> measurement time (peer's motion), measurement -> state time (own).
+        dt_peer = np.array([abs(m.stamp_ns - p.stamp_ns) * 1e-9 for m, p in use])
+        dt_own = np.array([abs(m.stamp_ns - now) * 1e-9 for m, _ in use])
+        grow = c.speed_bound_mps * (dt_peer + dt_own)
+        px = IV.of([p.x.lo for _, p in use], [p.x.hi for _, p in use]).inflate(grow)
+        py = IV.of([p.y.lo for _, p in use], [p.y.hi for _, p in use]).inflate(grow)
+        rho = IV.around([m.range_m for m, _ in use], [m.range_bound_m for m, _ in use])
+        beta = IV.around([m.bearing_rad for m, _ in use], [m.bearing_bound_rad for m, _ in use])
+        beta = beta.inflate(c.yaw_rate_bound_radps * dt_own)
+        ok = self.relative(now, px, py, rho, beta)
         return self.box() if ok else None
 
     def feed(self, msg) -> PoseBox | None:

@@ -52,6 +52,9 @@ class IV:
     lo: np.ndarray
     hi: np.ndarray
 
+    # numpy arrays on the left of +, -, * defer to IV's reflected operators.
+    __array_ufunc__ = None
+
     # --- construction -------------------------------------------------------------
     @staticmethod
     def of(lo, hi=None) -> IV:
@@ -97,7 +100,10 @@ class IV:
         return np.where(self.is_empty(), 0.0, up(self.hi - self.lo))
 
     def mid(self) -> np.ndarray:
-        return 0.5 * self.lo + 0.5 * self.hi
+        """Midpoint (0 for the entire line and for empties)."""
+        with np.errstate(invalid="ignore"):
+            m = 0.5 * self.lo + 0.5 * self.hi
+        return np.where(np.isnan(m), 0.0, m)
 
     def mag(self) -> np.ndarray:
         """max |x| over the interval."""
@@ -151,7 +157,7 @@ class IV:
     def __mul__(self, other) -> IV:
         o = as_iv(other)
         e = self.is_empty() | o.is_empty()
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
             p1, p2 = self.lo * o.lo, self.lo * o.hi
             p3, p4 = self.hi * o.lo, self.hi * o.hi
             lo = np.minimum(np.minimum(p1, p2), np.minimum(p3, p4))

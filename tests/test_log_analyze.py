@@ -135,3 +135,56 @@ def test_cli_missing_file_is_a_clear_error(tmp_path: Path) -> None:
         timeout=60,
     )
     assert proc.returncode == 2 and "no such log file" in proc.stderr
+
+
+def _rotated_run(path: Path, with_truth: bool) -> None:
+    """A pose source in its own frame: the truth rotated by 30 deg and shifted."""
+    import math
+
+    from hilnav.log.writer import LogWriter
+    from msgs import GpsFix, GroundTruth, Pose2D, PoseEstimate
+    from tests.logsynth import T0, truth_path
+
+    t_s, truth = truth_path()
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    with LogWriter(path, metadata={"robot": "r1"}, wall_clock=False) as w:
+        for i, ts in enumerate(t_s):
+            t = T0 + int(round(ts * 1e9))
+            x, y, th = truth[i]
+            if with_truth:
+                w.write("/r1/truth", GroundTruth(t, "r1", Pose2D(x, y, th)), t)
+            elif i % 10 == 0:
+                w.write("/r1/gps", GpsFix(t, mode=2, east_m=x, north_m=y), t)
+            p = Pose2D(c * x - s * y + 5.0, s * x + c * y - 2.0, th)
+            w.write("/r1/pose", PoseEstimate(t, p, (0.0,) * 9), t)
+
+
+@pytest.mark.parametrize("with_truth", [True, False])
+def test_rigid_fit_recovers_a_source_in_its_own_frame(tmp_path: Path, with_truth: bool) -> None:
+    path = tmp_path / "rot.mcap"
+    _rotated_run(path, with_truth)
+    s = analyze(path).summary["robots"]["r1"]
+    assert s["reference"] == ("truth" if with_truth else "gps")
+    pose = s["paths"]["pose"]
+    assert pose["position_error_m"]["mean"] > 3.0
+    assert pose["position_error_after_rigid_fit_m"]["max"] < 1e-6
+    assert pose["rigid_fit"]["dtheta_deg"] == pytest.approx(-30.0, abs=1e-6)
+
+
+def test_times_are_the_stamps_not_the_late_log_times(tmp_path: Path) -> None:
+    """A stalled service loop logs its outputs late: errors use the messages' stamps."""
+    from hilnav.log.writer import LogWriter
+    from msgs import GroundTruth, Pose2D, PoseEstimate
+    from tests.logsynth import T0, truth_path
+
+    t_s, truth = truth_path()
+    path = tmp_path / "late.mcap"
+    with LogWriter(path, metadata={"robot": "r1"}, wall_clock=False) as w:
+        for i, ts in enumerate(t_s):
+            t = T0 + int(round(ts * 1e9))
+            x, y, th = truth[i]
+            w.write("/r1/truth", GroundTruth(t, "r1", Pose2D(x, y, th)), t)
+            late = t + (3_000_000_000 if 100 <= i < 130 else 1_000_000)
+            w.write("/r1/pose", PoseEstimate(t, Pose2D(x, y, th), (0.0,) * 9), late)
+    err = analyze(path).summary["robots"]["r1"]["paths"]["pose"]["position_error_m"]
+    assert err["max"] < 1e-9

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import os
@@ -276,3 +277,35 @@ def test_sigkilled_writer_loses_at_most_about_a_second(tmp_path: Path) -> None:
     assert [g.angle_rad for g in got] == [float(i) for i in range(len(got))]  # a prefix, no gaps
     lost_s = (killed_ns - got[-1].stamp_ns) / 1e9
     assert 0.0 <= lost_s < 1.3, f"lost {lost_s:.2f} s of messages"
+
+
+def test_landmark_map_view_is_a_scene_of_spheres() -> None:
+    js = _jsonschema()
+    if importlib.util.find_spec("msgs.landmarks") is None:
+        pytest.skip("msgs.landmarks (SLAM helper) is not merged yet")
+    from msgs.landmarks import LandmarkMap
+
+    lm = LandmarkMap(T0, (1, 2), (1.0, -3.0), (2.0, 4.0), (0.04, 1.0), (0.0, 0.0), (0.01, 1.0))
+    ((topic, schema, body),) = foxglove.views("/vp/landmarks", lm, foxglove.ViewState())
+    js.validate(body, foxglove.SCHEMAS[schema])
+    assert topic == "/vp/fox/landmarks" and schema == "foxglove.SceneUpdate"
+    spheres = body["entities"][0]["spheres"]
+    assert [(s["pose"]["position"]["x"], s["pose"]["position"]["y"]) for s in spheres] == [
+        (1.0, 2.0),
+        (-3.0, 4.0),
+    ]
+    assert spheres[0]["size"]["x"] == pytest.approx(6 * 0.2)  # 3 sigma each side
+    assert spheres[1]["size"]["x"] == pytest.approx(6 * 1.0)
+
+
+def test_non_finite_values_keep_the_native_record_and_skip_the_view(tmp_path: Path) -> None:
+    path = tmp_path / "nan.mcap"
+    with LogWriter(path) as w:
+        bad = PoseEstimate(T0, Pose2D(float("nan"), 0.0, 0.0), (float("inf"),) * 9)
+        w.write("/r1/pose", bad, T0)
+        w.write("/r1/pose", PoseEstimate(T0 + 1, Pose2D(1.0, 0.0, 0.0), (0.0,) * 9), T0 + 1)
+        assert w.views_skipped == 1
+    stats = ReadStats()
+    got = [m.msg for m in read_messages(path, stats=stats)]
+    assert len(got) == 2 and math.isnan(got[0].pose.x) and got[0].covariance[0] == math.inf
+    assert stats.views == 1

@@ -82,24 +82,32 @@ def run(cfg, inputs):
 
 
 def test_same_inputs_give_the_same_outputs_and_a_sensible_heading():
-    inputs, truth = drive(seconds=40.0)
+    inputs, truth = drive(seconds=30.0)
     cfg = load_config(None)
+    m = dataclasses.replace(cfg.services.mapping, samples=60)
+    cfg = dataclasses.replace(cfg, services=dataclasses.replace(cfg.services, mapping=m))
     p1, out1 = run(cfg, inputs)
     _, out2 = run(cfg, inputs)
     assert out1 == out2
     topics = {t for t, _ in out1}
-    assert {"heading", "pose", "map"} <= topics
+    assert {"heading", "pose", "pose_box", "map", "association"} <= topics
     headings = [m for t, m in out1 if t == "heading"]
-    stamp, true_pose = truth[-1]
     last = headings[-1]
-    assert last.stamp_ns == stamp
+    true_at = dict(truth)
+    stamp, true_pose = last.stamp_ns, true_at[last.stamp_ns]
+    assert stamp >= truth[-2][0]  # at most the last odometry is held (for its gyro)
     assert abs(wrap_angle(last.theta_rad - true_pose.theta)) < math.radians(5)
     assert math.hypot(last.pose.x - true_pose.x, last.pose.y - true_pose.y) < 0.5
     # the map is throttled to one every publish_every_s of message time
     maps = [m for t, m in out1 if t == "map"]
     period = cfg.services.mapping.publish_every_s
-    assert 40.0 / period - 2 <= len(maps) <= 40.0 / period + 1
-    assert p1.latest["pose"].source == "heading"
+    assert 30.0 / period - 2 <= len(maps) <= 30.0 / period + 1
+    pose = p1.latest["pose"]
+    assert pose.frame == "map" and pose.stamp_ns == stamp
+    assert math.hypot(pose.pose.x - true_pose.x, pose.pose.y - true_pose.y) < 0.5
+    box = p1.latest["pose_box"]
+    assert box.robot == "r1"
+    assert box.x.lo <= true_pose.x <= box.x.hi and box.y.lo <= true_pose.y <= box.y.hi
 
 
 def test_services_switch_off_and_unknown_topics_are_ignored():
@@ -109,10 +117,11 @@ def test_services_switch_off_and_unknown_topics_are_ignored():
         cfg.services,
         mapping=dataclasses.replace(cfg.services.mapping, enabled=False),
         pose=dataclasses.replace(cfg.services.pose, enabled=False),
+        localization=dataclasses.replace(cfg.services.localization, enabled=False),
     )
     p, out = run(dataclasses.replace(cfg, services=sv), inputs)
     assert {t for t, _ in out} == {"heading"}
-    assert "mapping" not in p.services and "pose" not in p.services
+    assert p.services == ["heading"]
     assert p.feed("cmd_vel", object()) == [] and p.feed("truth", None) == []
 
 
@@ -125,3 +134,40 @@ def test_mapping_without_association_and_a_wrong_channel_count_is_counted():
     assert [t for t, _ in out].count("map") >= 4
     bad = IrScan(10**10, 1, 0, (1.0,), ("ok",), (1.0,))
     assert p.feed("ir", bad) == [] and p.mapping.mismatched == 1
+
+
+def test_bursts_after_a_stall_keep_gyro_and_encoder_intervals_aligned():
+    """A stalled reader delivers 4 SIPs with one stamp, and the gyro's 40 packets with
+    one stamp, in either order: the heading must come out as if nothing happened."""
+    inputs, truth = drive(seconds=25.0)
+    cfg = load_config(None)
+    sv = dataclasses.replace(
+        cfg.services,
+        mapping=dataclasses.replace(cfg.services.mapping, enabled=False),
+        localization=dataclasses.replace(cfg.services.localization, enabled=False),
+    )
+    cfg = dataclasses.replace(cfg, services=sv)
+
+    def stalled(gyro_first: bool):
+        out, held = [], []
+        for topic, msg in inputs:
+            t = msg.stamp_ns * 1e-9
+            in_stall = any(a <= t < a + 0.4 for a in (6.0, 11.0, 17.0))  # while turning
+            if in_stall:
+                held.append((topic, msg))
+                continue
+            if held:
+                stamp = msg.stamp_ns
+                burst = [(tp, dataclasses.replace(m, stamp_ns=stamp)) for tp, m in held]
+                burst.sort(key=lambda tm: (tm[0] != "gyro") == gyro_first)
+                out += burst
+                held = []
+            out.append((topic, msg))
+        return out
+
+    _, clean = run(cfg, inputs)
+    ref = [m for t, m in clean if t == "heading"][-1]
+    for gyro_first in (True, False):
+        _, out = run(cfg, stalled(gyro_first))
+        last = [m for t, m in out if t == "heading"][-1]
+        assert abs(wrap_angle(last.theta_rad - ref.theta_rad)) < math.radians(0.5), gyro_first

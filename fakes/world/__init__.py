@@ -5,6 +5,7 @@ from fakes.world.floorplan import BUILTIN, FloorPlan, load
 from fakes.world.gps_model import GpsErrorModel
 from fakes.world.gyro_model import GyroErrorModel
 from fakes.world.ir_model import IrErrorModel
+from fakes.world.landmarks import LandmarkSensorModel, pole_plan
 from fakes.world.world import World
 
 __all__ = [
@@ -14,7 +15,9 @@ __all__ = [
     "GpsErrorModel",
     "GyroErrorModel",
     "IrErrorModel",
+    "LandmarkSensorModel",
     "SlipModel",
     "World",
     "load",
+    "pole_plan",
 ]

@@ -1,85 +1,342 @@
-"""``hilnav demo``: the emulated Pioneer on a pty, driven around a square by the driver.
+"""``hilnav demo``: one simulated Pioneer, the daemon, a scripted tour over Zenoh, a report.
 
-Prints the odometry against the world's ground truth at every corner. (The robot daemon
-issue grows this into the full demo with all sensors, services, Zenoh and MCAP.)
+1. starts ``hilnav run`` on the embedded defaults (a Zenoh peer on a free loopback port):
+   the daemon starts the emulated Pioneer, IR board (on CAN, behind the emulated slcan
+   adapter), gyro and GPS on ptys in the office floor plan, and logs everything to MCAP;
+2. joins the bus as ``operator`` (a second Zenoh session), waits for the robot's
+   liveliness token and first pose, and drives a tour that loops the west room, visits
+   the south-east room through a door and comes back over its start (so places are
+   revisited), sending ``cmd_vel`` at 10 Hz like a joystick. The operator steers by what
+   a person watching the robot sees: the simulator's ground truth (``truth``), or the
+   daemon's pose estimate when there is no truth;
+3. stops the robot, stops the daemon with SIGTERM (log closed), and analyses the log:
+   ``hilnav analyze`` when that command is installed, else a short built-in summary (topic
+   counts, path error against the truth, the final map and the paths as PNG, JSON);
+4. prints where the MCAP, the PNGs and the summary are.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
+import os
+import signal
+import subprocess
+import sys
+import threading
 import time
+from pathlib import Path
+from typing import Any
 
-from drivers.arcos.driver import ArcosDriver
-from fakes.pioneer import PioneerEmulator
-from fakes.runner import FakeRunner
-from fakes.world import World
-from msgs import Pose2D, RobotOdometry
+from hilnav.errors import CliError
+
+# The tour in the office plan (8.9 x 7.1 m; west room x < 4, doors at x = 4, y 1.5-2.5).
+TOUR: tuple[tuple[float, float], ...] = (
+    # a loop in the west room, >= 1.2 m from the walls (the Sharp sensors see 1-5.5 m)
+    (2.8, 1.3),
+    (2.8, 3.9),
+    (1.3, 3.9),
+    (1.3, 1.3),
+    (2.2, 1.3),
+    # through the door at (4, 2) into the south-east room, a loop there, and back
+    (3.0, 2.0),
+    (5.3, 2.0),
+    (6.8, 1.6),
+    (6.8, 2.4),
+    (5.3, 2.4),
+    (5.0, 2.0),
+    (3.0, 2.0),
+    # the west loop again: places seen before
+    (2.8, 3.9),
+    (1.3, 3.9),
+    (1.3, 1.3),
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="run the demo: a simulated Pioneer driven by the driver")
-    p.add_argument("--side", type=float, default=1.0, help="side of the square in metres")
-    p.add_argument("--seed", type=int, default=0)
+    p = sub.add_parser(
+        "demo",
+        help="the demo: a simulated Pioneer, the daemon, a tour driven over Zenoh, a report",
+        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--out", default="hilnav-demo", help="output directory (default ./hilnav-demo)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulated world")
+    p.add_argument("--speed", type=float, default=0.5, help="cruise speed, m/s")
+    p.add_argument(
+        "--laps", type=int, default=len(TOUR), help="drive only the first N waypoints of the tour"
+    )
     p.set_defaults(func=run)
 
 
-def _drive_until(driver: ArcosDriver, v: float, w: float, done) -> RobotOdometry | None:  # noqa: ANN001
-    last = None
-    deadline = time.monotonic() + 30.0
-    while time.monotonic() < deadline:
-        driver.set_velocity(v, w)
-        for m in driver.read(0.1):
-            if isinstance(m, RobotOdometry):
-                last = m
-        if last is not None and done(last):
-            return last
-    return last
+def _say(text: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {text}", flush=True)
+
+
+class Operator:
+    """The user's side: a Zenoh session that watches the robot and sends cmd_vel."""
+
+    def __init__(self, robot: str, port: int) -> None:
+        from hilnav.bus import Bus, ZenohSettings
+
+        self.robot = robot
+        # gossip (with the daemon's): the operator also reaches the simulator's session
+        settings = ZenohSettings(
+            listen=("tcp/127.0.0.1:0",),
+            connect=(f"tcp/127.0.0.1:{port}",),
+            gossip_scouting=True,
+        )
+        self.bus = Bus("operator", settings, fleet=[robot])
+        self.lock = threading.Lock()
+        self.pose: Any = None
+        self.truth: Any = None
+        self.alive = False
+        self.bus.subscribe(robot, "pose", self._on_pose)
+        self.bus.subscribe(robot, "truth", self._on_truth)
+        self.bus.on_liveliness(self._on_alive)
+
+    def _on_pose(self, robot: str, msg: Any) -> None:
+        with self.lock:
+            self.pose = msg.pose
+
+    def _on_truth(self, robot: str, msg: Any) -> None:
+        with self.lock:
+            self.truth = msg.pose
+
+    def _on_alive(self, robot: str, alive: bool) -> None:
+        if robot == self.robot:
+            self.alive = alive
+
+    def where(self) -> Any:
+        with self.lock:
+            return self.truth if self.truth is not None else self.pose
+
+    def send(self, v: float, w: float) -> None:
+        from msgs import VelocityCommand
+
+        self.bus.publish_to(
+            self.robot, "cmd_vel", VelocityCommand(time.time_ns(), v, w, source="operator")
+        )
+
+    def drive(self, waypoints, speed: float, deadline: float) -> int:  # noqa: ANN001
+        """Follow the waypoints; returns how many were reached before the deadline."""
+        from msgs import wrap_angle
+
+        reached = 0
+        for tx, ty in waypoints:
+            wp_deadline = min(deadline, time.monotonic() + 40.0)
+            while time.monotonic() < wp_deadline:
+                p = self.where()
+                if p is None:
+                    time.sleep(0.1)
+                    continue
+                dx, dy = tx - p.x, ty - p.y
+                if math.hypot(dx, dy) < 0.2:
+                    break
+                err = wrap_angle(math.atan2(dy, dx) - p.theta)
+                w = max(-1.0, min(1.0, 2.5 * err))
+                v = 0.0 if abs(err) > 0.25 else speed * math.cos(err) ** 4
+                v = min(v, 0.25 + 0.5 * math.hypot(dx, dy))
+                self.send(v, w)
+                time.sleep(0.1)
+            else:
+                return reached
+            reached += 1
+        return reached
+
+    def close(self) -> None:
+        self.bus.close()
+
+
+def _start_daemon(out: Path, port: int, seed: int) -> tuple[subprocess.Popen, Path]:
+    cfg = out / "demo-robot.toml"
+    cfg.write_text(
+        "# written by hilnav demo: the embedded defaults with a free Zenoh port\n"
+        f'[zenoh]\nlisten = ["tcp/127.0.0.1:{port}"]\ngossip_scouting = true\n'
+        f'[log]\ndir = "{out}"\n'
+        f"[simulation]\nseed = {seed}\n"
+    )
+    log = out / "demo.mcap"
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH", "")) if p)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hilnav", "run", "--config", str(cfg), "--log", str(log), "--quiet"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    return proc, log
+
+
+def _stop_daemon(proc: subprocess.Popen) -> str:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+    try:
+        out, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    if proc.returncode != 0:
+        raise CliError(f"the daemon exited with {proc.returncode}: {err.strip()[-500:]}")
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
-    world = World.from_name("open_field", seed=args.seed)
-    world.add_robot("r1", Pose2D(0.0, 0.0, 0.0))
-    runner = FakeRunner(world)
-    runner.add(PioneerEmulator("r1", seed=args.seed))
-    with runner:
-        driver = ArcosDriver(runner.ports()["arcos"])
-        info = driver.open()
-        print(f"connected to {info.name} ({info.robot_class} {info.subclass}) on {driver.url}")
-        for corner in range(4):
-            start = _drive_until(driver, 0.0, 0.0, lambda m: True)
-            sx, sy = start.pose.x, start.pose.y
-            _drive_until(
-                driver,
-                0.3,
-                0.0,
-                lambda m, sx=sx, sy=sy: (
-                    math.hypot(m.pose.x - sx, m.pose.y - sy) >= args.side - 0.02
-                ),
-            )
-            goal = math.remainder((corner + 1) * math.pi / 2, 2 * math.pi)
-            odo = _drive_until(
-                driver,
-                0.0,
-                0.4,
-                lambda m, g=goal: abs(math.remainder(g - m.pose.theta, 2 * math.pi)) < 0.03,
-            )
-            truth = world.robots["r1"].pose
-            print(
-                json.dumps(
-                    {
-                        "corner": corner + 1,
-                        "odometry": [
-                            round(odo.pose.x, 3),
-                            round(odo.pose.y, 3),
-                            round(odo.pose.theta, 3),
-                        ],
-                        "truth": [round(truth.x, 3), round(truth.y, 3), round(truth.theta, 3)],
-                    }
-                )
-            )
-        driver.stop()
-        driver.close()
-    print("done: the odometry drifts from the truth by wheel slip, as on the real robot")
+    from hilnav.bus import free_tcp_port
+
+    t0 = time.monotonic()
+    out = Path(args.out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    port = free_tcp_port()
+    _say(f"starting the daemon on a simulated Pioneer (office plan), Zenoh tcp/127.0.0.1:{port}")
+    proc, log = _start_daemon(out, port, args.seed)
+    op = None
+    try:
+        op = Operator("r1", port)
+        end = time.monotonic() + 40.0
+        while time.monotonic() < end and (not op.alive or op.where() is None):
+            if proc.poll() is not None:
+                raise CliError(f"the daemon did not start: {proc.stderr.read().strip()[-500:]}")
+            time.sleep(0.1)
+        if op.where() is None:
+            raise CliError("the daemon published no pose within 40 s")
+        _say("robot r1 is alive; standing still 2 s (the gyro's bias is measured)")
+        time.sleep(2.0)
+        _say(
+            "driving the tour over cmd_vel (10 Hz), steering on "
+            + ("the simulator's truth" if op.truth is not None else "the pose estimate")
+        )
+        waypoints = TOUR[: max(1, args.laps)]
+        t_drive = time.monotonic()
+        reached = op.drive(waypoints, args.speed, time.monotonic() + 80.0)
+        for _ in range(5):
+            op.send(0.0, 0.0)
+            time.sleep(0.1)
+        _say(
+            f"tour done: {reached}/{len(waypoints)} waypoints in "
+            f"{time.monotonic() - t_drive:.0f} s; stopping the daemon"
+        )
+    finally:
+        if op is not None:
+            op.close()
+        daemon_out = _stop_daemon(proc)
+    for line in daemon_out.strip().splitlines()[-1:]:
+        _say(line)
+    _say("analysing the log")
+    report = analyse(log, out)
+    _say(f"done in {time.monotonic() - t0:.0f} s")
+    print(f"MCAP log : {log}")
+    for png in sorted(out.glob("*.png")):
+        print(f"PNG      : {png}")
+    print(f"summary  : {report}")
     return 0
+
+
+def analyse(log: Path, out: Path) -> Path:
+    """``hilnav analyze`` when installed, else the built-in summary; returns the JSON path."""
+    if importlib.util.find_spec("hilnav.commands.analyze") is not None:
+        r = subprocess.run(
+            [sys.executable, "-m", "hilnav", "analyze", str(log), "--out", str(out)],
+            capture_output=True,
+            text=True,
+        )
+        sys.stdout.write(r.stdout)
+        if r.returncode == 0:
+            found = sorted(out.glob("*summary*.json"))
+            if found:
+                return found[-1]
+        sys.stderr.write(r.stderr)
+    return builtin_summary(log, out)
+
+
+def builtin_summary(log: Path, out: Path) -> Path:
+    """Topic counts, estimated pose against the truth, final map and paths as PNG."""
+    import numpy as np
+    from mcap.reader import make_reader
+
+    import msgs
+    from hilnav.bus import topic_type
+
+    counts: dict[str, int] = {}
+    poses: list[tuple[int, float, float]] = []
+    truth: list[tuple[int, float, float]] = []
+    last_map = None
+    diags: dict[str, Any] = {}
+    with open(log, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            parts = channel.topic.split("/", 2)
+            topic = parts[2] if len(parts) == 3 else ""
+            cls = topic_type(topic)
+            if cls is None or schema.name != msgs.schema_name(cls):
+                continue
+            if topic in ("pose", "truth", "map", "diagnostics"):
+                m = msgs.decode(cls, message.data)
+                if topic == "pose":
+                    poses.append((m.stamp_ns, m.pose.x, m.pose.y))
+                elif topic == "truth":
+                    truth.append((m.stamp_ns, m.pose.x, m.pose.y))
+                elif topic == "map":
+                    last_map = m
+                else:
+                    diags[m.device] = m
+    summary: dict[str, Any] = {"log": str(log), "topics": counts}
+    if poses and truth:
+        p = np.array(poses, dtype=float)
+        t = np.array(truth, dtype=float)
+        tx = np.interp(p[:, 0], t[:, 0], t[:, 1])
+        ty = np.interp(p[:, 0], t[:, 0], t[:, 2])
+        err = np.hypot(p[:, 1] - tx, p[:, 2] - ty)
+        travelled = float(np.sum(np.hypot(np.diff(t[:, 1]), np.diff(t[:, 2]))))
+        summary["path_error_m"] = {
+            "mean": round(float(err.mean()), 3),
+            "max": round(float(err.max()), 3),
+            "final": round(float(err[-1]), 3),
+        }
+        summary["distance_m"] = round(travelled, 2)
+    summary["diagnostics"] = {
+        k: {"frames_ok": v.frames_ok, "bad": v.bad_checksums, "reconnects": v.reconnects}
+        for k, v in diags.items()
+    }
+    _plots(out, poses, truth, last_map)
+    path = out / "summary.json"
+    path.write_text(json.dumps(summary, indent=2))
+    return path
+
+
+def _plots(out: Path, poses, truth, grid_msg) -> None:  # noqa: ANN001
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(7, 6))
+    if grid_msg is not None:
+        from mapping.export import from_grid_msg
+
+        cells = from_grid_msg(grid_msg).astype(float)
+        img = np.where(cells < 0, 0.5, 1.0 - cells / 100.0)
+        rows, cols = cells.shape
+        res = grid_msg.cell_size.x
+        x0, y0 = grid_msg.pose.position.x, grid_msg.pose.position.y
+        ax.imshow(img, cmap="gray", origin="lower", vmin=0, vmax=1,
+                  extent=(x0, x0 + cols * res, y0, y0 + rows * res))  # fmt: skip
+    if truth:
+        t = np.array(truth)
+        ax.plot(t[:, 1], t[:, 2], "g-", lw=1, label="truth")
+    if poses:
+        p = np.array(poses)
+        ax.plot(p[:, 1], p[:, 2], "r-", lw=1, label="estimate")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(loc="upper right")
+    ax.set_title("hilnav demo: map, true and estimated path")
+    fig.tight_layout()
+    fig.savefig(out / "demo_map_path.png", dpi=90)
+    plt.close(fig)

@@ -102,7 +102,14 @@ def run(args: argparse.Namespace) -> int:
         from hilnav.bus import Bus, ZenohSettings
         from hilnav.fakeset import TruthPublisher
 
-        bus = Bus(opts.robot, ZenohSettings(connect=(args.zenoh_connect,)))
+        # gossip on, listening on loopback only: when the daemon gossips too (the demo),
+        # other sessions (the operator) reach this one directly and see the truth
+        bus = Bus(
+            opts.robot,
+            ZenohSettings(
+                listen=("tcp/127.0.0.1:0",), connect=(args.zenoh_connect,), gossip_scouting=True
+            ),
+        )
         runner.add(TruthPublisher(opts.robot, bus, args.truth_rate))
     done = threading.Event()
 

@@ -47,8 +47,6 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     if not args.quiet:
         print(summary(daemon.cfg), file=sys.stderr)
-        if daemon.pipeline.unavailable:
-            print("  not available yet: " + ", ".join(daemon.pipeline.unavailable), file=sys.stderr)
     print(f"hilnav run: {cfg.name} up; log {daemon.log_path}", flush=True)
     try:
         daemon.wait(args.seconds)

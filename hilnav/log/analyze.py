@@ -1,7 +1,9 @@
 """``hilnav analyze``: what a log allows to conclude, as a JSON summary (plots in plots.py).
 
-Per robot (topics ``/<robot>/<kind>``), with times taken from the MCAP log times (one clock
-for every topic, written by the daemon):
+Per robot (topics ``/<robot>/<kind>``). Times are the messages' own stamps (``stamp_ns``:
+one host clock in the daemon, the device read time, carried over to the estimates), or the
+MCAP log time for a message without one — log times of service outputs are when the
+service loop got to them, which lags behind when the loop stalls.
 
 - **path error** of every pose source — ``pose`` (pose EKF), ``heading`` (heading filter's
   dead reckoning), ``odometry`` (raw ARCOS odometry in ``odom``, aligned to the reference
@@ -95,6 +97,8 @@ class RobotLog:
     maps: int = 0
     diagnostics: dict[str, list[DeviceDiagnostics]] = field(default_factory=dict)
     info: RobotInfo | None = None
+    landmarks: Any = None  # the last landmark map (msgs.landmarks.LandmarkMap: xs, ys)
+    landmark_maps: int = 0
     counts: Counter = field(default_factory=Counter)
 
 
@@ -112,7 +116,9 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
             continue
         rl = robots.setdefault(robot, RobotLog(robot))
         rl.counts[kind] += 1
-        msg, t = m.msg, m.log_time_ns
+        msg = m.msg
+        stamp = getattr(msg, "stamp_ns", None)
+        t = stamp if isinstance(stamp, int) and stamp > 0 else m.log_time_ns
         if isinstance(msg, GroundTruth):
             rl.truth.add(t, msg.pose.x, msg.pose.y, msg.pose.theta)
         elif isinstance(msg, PoseEstimate):
@@ -139,6 +145,9 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
             rl.diagnostics.setdefault(msg.device, []).append(msg)
         elif isinstance(msg, RobotInfo):
             rl.info = msg
+        elif hasattr(msg, "xs") and hasattr(msg, "ys") and hasattr(msg, "ids"):
+            rl.landmarks = msg
+            rl.landmark_maps += 1
     return robots
 
 
@@ -200,40 +209,89 @@ def align_at_start(
 
 @dataclass
 class SourceErrors:
-    t: np.ndarray
+    t: np.ndarray  # evaluation times (the source's; the fixes' for a GPS reference)
     pos_err: np.ndarray
     head_err: np.ndarray  # rad, signed (nan without a reference heading)
     dist: np.ndarray  # reference distance travelled at t
-    est_x: np.ndarray
+    est_x: np.ndarray  # the whole track (start-aligned for dead reckoning), for plots
     est_y: np.ndarray
+    fit: tuple[float, float, float] = (0.0, 0.0, 0.0)  # best rigid fit (dx, dy, dtheta)
+    pos_err_fit: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+def rigid_fit(p: np.ndarray, q: np.ndarray) -> tuple[float, float, float]:
+    """Rotation + translation (dx, dy, dtheta) minimising sum |R p + t - q|^2 (2-D Kabsch)."""
+    pc, qc = p.mean(axis=0), q.mean(axis=0)
+    a, b = p - pc, q - qc
+    th = math.atan2(float(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])), float(np.sum(a * b)))
+    c, s = math.cos(th), math.sin(th)
+    t = qc - np.array([c * pc[0] - s * pc[1], s * pc[0] + c * pc[1]])
+    return float(t[0]), float(t[1]), th
+
+
+def apply_fit(
+    fit: tuple[float, float, float], x: np.ndarray, y: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    dx, dy, th = fit
+    c, s = math.cos(th), math.sin(th)
+    return c * x - s * y + dx, s * x + c * y + dy
 
 
 def source_errors(
     name: str, track: Track, ref: Track, ref_has_heading: bool
 ) -> SourceErrors | None:
-    """Errors of one pose source against the reference, at the source's times."""
+    """Errors of one pose source against the reference.
+
+    With truth (dense, with heading) the truth is interpolated at the source's times; with
+    GPS fixes (sparse, with gaps, no heading) the source is interpolated at the fixes'
+    times. Dead-reckoning sources are first aligned at their first sample. The errors after
+    the best rigid fit of the whole track to the reference are reported too (the absolute
+    trajectory error of SLAM evaluations), which is what counts for a source in a frame of
+    its own (SLAM against GPS).
+    """
     if len(track) == 0 or len(ref) < 2:
         return None
     t, x, y, th = track.arrays()
     rt, rx, ry, rth = ref.arrays()
     if not ref_has_heading:
         rth = np.full(len(rt), np.nan)
-    qx, qy, qth, ok = interp_pose(rt, rx, ry, rth, t)
-    if not ok.any():
-        return None
-    t, x, y, th, qx, qy, qth = (a[ok] for a in (t, x, y, th, qx, qy, qth))
     if name in DEAD_RECKONING:  # their own frames: align at the first sample
-        r0th = qth[0] if np.isfinite(qth[0]) else 0.0
+        q0x, q0y, q0th, ok0 = interp_pose(rt, rx, ry, rth, t[:1])
+        if not ok0[0]:
+            i = int(np.searchsorted(rt, t[0]))
+            q0x, q0y = rx[min(i, len(rt) - 1)] * np.ones(1), ry[min(i, len(rt) - 1)] * np.ones(1)
+        r0th = float(q0th[0]) if np.isfinite(q0th[0]) else 0.0
         if name == "gyro":
             th = wrap(th - th[0] + r0th)
-            x, y = qx.copy(), qy.copy()
         else:
-            x, y, th = align_at_start(x, y, th, qx[0], qy[0], r0th)
-    pos = np.hypot(x - qx, y - qy) if name != "gyro" else np.full(len(t), np.nan)
-    head = wrap(th - qth) if ref_has_heading else np.full(len(t), np.nan)
-    dist = np.interp(t.astype(float), rt.astype(float), path_length(rx, ry))
+            x, y, th = align_at_start(x, y, th, float(q0x[0]), float(q0y[0]), r0th)
+    if ref_has_heading:
+        qx, qy, qth, ok = interp_pose(rt, rx, ry, rth, t)
+        if not ok.any():
+            return None
+        te, ex, ey, eth = t[ok], x[ok], y[ok], th[ok]
+        qx, qy, qth = qx[ok], qy[ok], qth[ok]
+        if name == "gyro":
+            ex, ey = qx.copy(), qy.copy()
+        head = wrap(eth - qth)
+    else:
+        ex, ey, _, ok = interp_pose(t, x, y, np.zeros(len(t)), rt)
+        if ok.sum() < 2:
+            return None
+        te, ex, ey = rt[ok], ex[ok], ey[ok]
+        qx, qy = rx[ok], ry[ok]
+        head = np.full(len(te), np.nan)
+    if name == "gyro":
+        pos = fit_err = np.full(len(te), np.nan)
+        fit = (0.0, 0.0, 0.0)
+    else:
+        pos = np.hypot(ex - qx, ey - qy)
+        fit = rigid_fit(np.column_stack([ex, ey]), np.column_stack([qx, qy]))
+        fx, fy = apply_fit(fit, ex, ey)
+        fit_err = np.hypot(fx - qx, fy - qy)
+    dist = np.interp(te.astype(float), rt.astype(float), path_length(rx, ry))
     dist = dist - dist[0]
-    return SourceErrors(t, pos, head, dist, x, y)
+    return SourceErrors(te, pos, head, dist, x, y, fit, fit_err)
 
 
 def drift_per_metre(head_err: np.ndarray, dist: np.ndarray) -> dict[str, float]:
@@ -442,6 +500,12 @@ def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
         if name != "gyro":
             entry["position_error_m"] = _stats(e.pos_err)
             entry["initial_position_error_m"] = float(e.pos_err[0])
+            entry["position_error_after_rigid_fit_m"] = _stats(e.pos_err_fit)
+            entry["rigid_fit"] = {
+                "dx_m": e.fit[0],
+                "dy_m": e.fit[1],
+                "dtheta_deg": math.degrees(e.fit[2]),
+            }
         if ref_heading:
             entry["heading_error_deg"] = _stats(np.degrees(e.head_err))
             entry["heading_drift"] = drift_per_metre(e.head_err, e.dist)
@@ -461,6 +525,8 @@ def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
     m = map_summary(rl, plan_name)
     if m is not None:
         s["map"] = m
+    if rl.landmarks is not None:
+        s["landmarks"] = {"maps_logged": rl.landmark_maps, "count": len(rl.landmarks.xs)}
     if rl.diagnostics:
         s["diagnostics"] = diagnostics_summary(rl.diagnostics)
     if rl.info is not None:

@@ -12,7 +12,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from hilnav.log.analyze import NS, Analysis, RobotAnalysis, grid_of_msg, load_plan  # noqa: E402
+from hilnav.log.analyze import (  # noqa: E402
+    NS,
+    Analysis,
+    RobotAnalysis,
+    apply_fit,
+    grid_of_msg,
+    load_plan,
+)
 
 COLORS = {
     "truth": "black",
@@ -60,14 +67,24 @@ def plot_path(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | No
     if len(rl.truth):
         _, tx, ty, _ = rl.truth.arrays()
         ax.plot(tx, ty, color=_color("truth"), lw=2.0, label="truth", zorder=4)
+    fitted = ra.reference == "gps"  # other frames: draw each track after its rigid fit
     for name, tr in sorted(rl.sources.items()):
         if name == "gyro" or len(tr) == 0:
             continue
-        if name in ra.errors:  # the aligned track, as the errors were computed
+        label = name
+        if name in ra.errors:  # the (start-aligned) track, as the errors were computed
             x, y = ra.errors[name].est_x, ra.errors[name].est_y
+            if fitted:
+                x, y = apply_fit(ra.errors[name].fit, x, y)
+                label += " (rigid fit)"
         else:
             _, x, y, _ = tr.arrays()
-        ax.plot(x, y, color=_color(name), lw=1.2, label=name, zorder=3)
+        ax.plot(x, y, color=_color(name), lw=1.2, label=label, zorder=3)
+    if rl.landmarks is not None and len(rl.landmarks.xs):
+        lx, ly = np.asarray(rl.landmarks.xs, float), np.asarray(rl.landmarks.ys, float)
+        if fitted and "pose" in ra.errors:
+            lx, ly = apply_fit(ra.errors["pose"].fit, lx, ly)
+        ax.scatter(lx, ly, marker="+", s=25, color="tab:olive", label="landmarks", zorder=5)
     if ra.boxes is not None:
         step = max(1, len(ra.boxes.boxes) // 40)
         for b in ra.boxes.boxes[::step]:

@@ -88,6 +88,7 @@ class LogWriter:
         self._last_flush_wall = time.monotonic()
         self._closed = False
         self.messages_written = 0
+        self.views_skipped = 0  # views not written (non-finite values)
         self.bytes_written = 0
         if metadata:
             self.add_metadata(METADATA_NAME, metadata)
@@ -176,11 +177,24 @@ class LogWriter:
                 cid = self._channel_id(topic, name, msgs.json_schema(cls))
             self._add(cid, data, log_ns, pub_ns)
             if self._views:
-                for vtopic, vschema, body in foxglove.views(topic, msg, self._view_state):
-                    vcid = self._channels.get((vtopic, vschema, "json"))
-                    if vcid is None:
-                        vcid = self._channel_id(vtopic, vschema, foxglove.SCHEMAS.get(vschema))
-                    self._add(vcid, _dumps(body), log_ns, pub_ns)
+                self._write_views(topic, msg, log_ns, pub_ns)
+
+    def _write_views(self, topic: str, msg: Any, log_ns: int, pub_ns: int) -> None:
+        try:
+            views = foxglove.views(topic, msg, self._view_state)
+        except (TypeError, ValueError, AttributeError):
+            self.views_skipped += 1  # an odd message: the native record is what matters
+            return
+        for vtopic, vschema, body in views:
+            try:
+                data = _dumps(body)
+            except ValueError:  # NaN/inf (a diverged filter): Foxglove JSON cannot hold it
+                self.views_skipped += 1
+                continue
+            vcid = self._channels.get((vtopic, vschema, "json"))
+            if vcid is None:
+                vcid = self._channel_id(vtopic, vschema, foxglove.SCHEMAS.get(vschema))
+            self._add(vcid, data, log_ns, pub_ns)
 
     def write_encoded(
         self,
