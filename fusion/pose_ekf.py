@@ -33,7 +33,11 @@ Gating: every measurement's squared Mahalanobis distance (NIS) nu^T S^-1 nu is c
 with the chi-square quantile of its dimension at ``gate_probability`` (default 0.99:
 9.21 for GPS with 2 dof, 6.63 for the gyro step and the heading with 1 dof, from
 scipy.stats.chi2.ppf); beyond it the measurement is rejected and counted (gps_rejected,
-gyro_rejected, heading_rejected). ``gate_probability=None`` turns gating off.
+heading_rejected). For the gyro step the verdict goes the other way: the gyro integrates
+a rate and cannot jump, the encoders can (a bad or stale SIP, a spinning wheel), so the
+encoders' heading change is the outlier and is replaced by the gyro's
+(odometry_heading_rejected). Which gyro change goes with which odometry step (late and
+bunched messages after a stall) is decided by fusion.alignment. ``gate_probability=None`` turns gating off.
 
 Timeouts: a sensor silent for longer than its timeout (relative to the odometry stamps)
 is flagged stale (``gps_stale``, ``gyro_stale``; transitions counted) and the filter
@@ -66,7 +70,8 @@ import numpy as np
 from scipy.stats import chi2
 
 from fusion import models
-from fusion.increments import GyroDeltas, OdometryDeltas, RestBias
+from fusion.alignment import Deferred, GyroAlignment
+from fusion.increments import GyroDelta, GyroDeltas, OdometryDeltas, RestBias
 from msgs import (
     GpsFix,
     GyroSample,
@@ -95,6 +100,8 @@ class PoseEkfParams:
     gyro_arw_rad_per_sqrt_s: float = 0.015 * DEG
     gyro_bias_sigma_radps: float = 0.005 * DEG
     gyro_timeout_s: float = 0.5
+    gyro_max_lag_s: float = 0.05
+    gyro_max_defer_s: float = 2.0
     odometry_timeout_s: float = 0.5
     learn_bias_at_rest: bool = True
     bias_window_s: float = 30.0
@@ -120,7 +127,7 @@ class PoseEkfParams:
                 raise ValueError(f"PoseEkfParams.{name} must be finite and > 0, got {v!r}")
         for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "turn_noise_fraction",
                      "gyro_gamma", "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps",
-                     "gps_min_sigma_m", "gps_max_lag_s", "gps_error_correlation_s",
+                     "gps_min_sigma_m", "gps_max_lag_s", "gyro_max_lag_s", "gyro_max_defer_s", "gps_error_correlation_s",
                      "initial_sigma_xy_m", "initial_sigma_theta_rad", "bias_window_s",
                      "bias_min_rest_s"):  # fmt: skip
             v = getattr(self, name)
@@ -154,8 +161,9 @@ class EkfCounters:
     gps: int = 0
     predictions: int = 0
     gyro_fused: int = 0
-    gyro_rejected: int = 0
     gyro_misaligned: int = 0
+    gyro_merges: int = 0
+    odometry_heading_rejected: int = 0
     gps_updates: int = 0
     gps_rejected: int = 0
     gps_no_fix: int = 0
@@ -179,6 +187,7 @@ class PoseEkf:
         self._gates = {1: p.gate(1), 2: p.gate(2)}
         self._odo = OdometryDeltas()
         self._gyro = GyroDeltas()
+        self._align = GyroAlignment(self._gyro, p.gyro_max_lag_s, p.gyro_max_defer_s)
         self._bias = RestBias(p.bias_window_s, p.bias_min_rest_s)
         self._count = EkfCounters()
         self.last_nis: dict[str, float] = {"gps": math.nan, "gyro": math.nan, "heading": math.nan}
@@ -212,6 +221,7 @@ class PoseEkf:
         self._pose_set = known
         self._odo.reset()
         self._gyro.reset()
+        self._align.reset()
         self._last_gps_ns = None
         self._last_gps_used_ns = None
         self._speed_mps = 0.0
@@ -305,7 +315,12 @@ class PoseEkf:
                 qu = 0.5 * (qu + qu.T)
                 self._count.gyro_fused += 1
             else:
-                self._count.gyro_rejected += 1
+                # Encoders and gyro disagree beyond the gate over an aligned interval: the
+                # gyro integrates a rate and cannot jump, the encoders can (a bad or stale
+                # SIP, a wheel spinning): the encoders' heading change is the outlier.
+                u = np.array([u[0], dtheta_gyro])
+                qu = np.diag([qu[0, 0], rg])
+                self._count.odometry_heading_rejected += 1
             result = UpdateResult("gyro", accepted, nis, 1)
         f, g = models.motion_jacobians(self.x, u, p.heading_point)
         self.x = models.motion(self.x, u, p.heading_point)
@@ -386,32 +401,60 @@ class PoseEkf:
         self._gyro.feed(msg)
 
     def feed_odometry(self, msg: RobotOdometry) -> PoseEstimate | None:
-        """Predict over the motion since the previous odometry (fusing the gyro's step)."""
+        """Predict over the motion since the previous odometry (fusing the gyro's step).
+
+        The gyro's change is fused only over an interval it has caught up with
+        (fusion.alignment); steps it lags behind are predicted on the encoders and
+        corrected when it catches up (:meth:`_merge`).
+        """
         self._count.odometry += 1
         step = self._odo.feed(msg)
-        gyro = self._gyro.take()
+        p = self.params
         if step is None:
-            if self._odo.last is msg:  # first message or re-baseline after a jump
+            if self._odo.baselined:  # first message or re-baseline after a jump
+                d = self._align.close()
+                lost = self._align.baseline()
+                if d is not None and lost is not None:
+                    self._merge(d, lost)
+                elif lost is not None:  # odometry jumped: the gyro alone turns the heading
+                    dg = lost.angle_rad - self._bias.bias_radps * lost.covered_s
+                    self.x[2] = wrap_angle(self.x[2] + dg)
+                    self.P[2, 2] += self._gyro_var(dg, lost.covered_s)
                 self.stamp_ns = max(self.stamp_ns, msg.stamp_ns)
                 return self.estimate()
             return None
-        p = self.params
+        decision, gyro = self._align.decide(step)
         if p.learn_bias_at_rest:
-            self._bias.observe(step, gyro)
-        last_g = self._gyro.last_stamp_ns
-        stale = gyro is None or last_g is None or (step.t1_ns - last_g) * NS > p.gyro_timeout_s
+            self._bias.observe(step, gyro if decision == "fuse" else None)
+        stale = self._align.silent_s > p.gyro_timeout_s
         if stale and not self.gyro_stale:
             self._count.gyro_timeouts += 1
         self.gyro_stale = stale
-        dg = rg = None
-        if not stale and gyro is not None:
-            if gyro.covered_s > 1.5 * step.dt_s + 0.05:
-                self._count.gyro_misaligned += 1
-            else:
-                dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
-                rg = self._gyro_var(dg, gyro.covered_s)
+        if decision == "timeout":
+            self._count.gyro_misaligned += 1
         dl, dr = models.step_to_wheels(step.ds_m, step.dtheta_rad, p.wheelbase_m)
-        self.predict(float(dl), float(dr), dg, rg)
+        qu = models.step_covariance(
+            float(dl), float(dr), p.wheelbase_m, p.wheel_noise_m_per_sqrt_m,
+            p.wheel_noise_floor_m, p.turn_noise_fraction,
+        )  # fmt: skip
+        var_enc, x0, y0 = float(qu[1, 1]), float(self.x[0]), float(self.x[1])
+        if decision == "fuse" and gyro is not None:
+            dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
+            rg = self._gyro_var(dg, gyro.covered_s)
+            nu = dg - step.dtheta_rad
+            if not step.at_rest and nu * nu / (var_enc + rg) > self._gates[1]:
+                self._align.postpone(step, gyro, var_enc, x0, y0)
+                self.predict(float(dl), float(dr))
+            else:
+                self.predict(float(dl), float(dr), dg, rg)
+        else:
+            if decision in ("deferred", "merged"):
+                self._align.defer(step, var_enc, x0, y0)
+            self.predict(float(dl), float(dr))
+            if decision == "merged":
+                d = self._align.close()
+                if d is not None and gyro is not None:
+                    self._merge(d, gyro)
         self.stamp_ns = step.t1_ns
         self._speed_mps = abs(step.ds_m) / step.dt_s if step.dt_s > 0 else 0.0
         gps_stale = self._last_gps_ns is None or (
@@ -421,6 +464,42 @@ class PoseEkf:
             self._count.gps_timeouts += 1
         self.gps_stale = gps_stale
         return self.estimate()
+
+    def _merge(self, d: Deferred, gyro: GyroDelta) -> None:
+        """The gyro's change over a deferred interval, fused retroactively.
+
+        The deferred steps were predicted on the encoders (heading moved by their sum E,
+        dtheta variance sum Sw). The gyro's change G is a measurement of the same sum:
+        innovation G - E, S = Sw + Rg, gated like a single step (beyond the gate the
+        encoders are the outlier: K = 1). The heading moves by K (G - E), P_theta loses
+        K Sw, and the position driven meanwhile is rotated about its start by half the
+        correction. Approximate (the cross-covariances are kept): used only after stalls.
+        """
+        dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
+        rg = self._gyro_var(dg, gyro.covered_s)
+        nu = dg - d.dtheta_enc
+        s = d.var_enc + rg
+        nis = nu * nu / s
+        self.last_nis["gyro"] = nis
+        if nis <= self._gates[1] or not d.moving:
+            k = d.var_enc / s
+            self._count.gyro_fused += 1
+        else:
+            k = 1.0
+            self._count.odometry_heading_rejected += 1
+        delta = k * nu
+        c, sn = math.cos(0.5 * delta), math.sin(0.5 * delta)
+        ex, ey = self.x[0] - d.x0, self.x[1] - d.y0
+        self.x[0], self.x[1] = d.x0 + c * ex - sn * ey, d.y0 + sn * ex + c * ey
+        self.x[2] = wrap_angle(self.x[2] + delta)
+        pt = self.P.copy()
+        pt[2, 2] = max(pt[2, 2] - k * d.var_enc + (rg if k == 1.0 else 0.0), 1e-12)
+        if not _is_pd(pt):
+            w, v = np.linalg.eigh(pt)
+            pt = (v * np.maximum(w, 1e-12)) @ v.T
+            self._count.covariance_repairs += 1
+        self.P = 0.5 * (pt + pt.T)
+        self._count.gyro_merges += 1
 
     def gps_measurement(self, msg: GpsFix) -> tuple[np.ndarray, np.ndarray] | None:
         """(z, R) of a fix in local metres, or None when it has no usable position."""
@@ -507,6 +586,8 @@ class PoseEkf:
                 "odometry_jumps": self._odo.jumps,
                 "out_of_order_gyro": self._gyro.out_of_order,
                 "gyro_discontinuities": self._gyro.discontinuities,
+                "gyro_postponed": self._align.postponed,
+                "gyro_deferred_steps": self._align.deferrals,
                 "gyro_stale": self.gyro_stale,
                 "gps_stale": self.gps_stale,
                 "gyro_bias_radps": self._bias.bias_radps,

@@ -159,12 +159,13 @@ def test_gating_rejects_an_outlier_and_counts_it():
     assert free.x[0] > 10.0 and free.counters()["gps_updates"] == 1
 
 
-def test_gyro_step_disagreeing_wildly_is_gated_and_counted():
+def test_encoder_turn_contradicted_by_the_gyro_is_gated_and_the_gyro_kept():
     ekf = PoseEkf(initial=Pose2D())
     res = ekf.predict(0.05, 0.05, dtheta_gyro=0.5, gyro_var=1e-6)
     assert res is not None and not res.accepted and res.nis > chi2.ppf(0.99, 1)
-    assert ekf.counters()["gyro_rejected"] == 1
-    assert ekf.x[2] == pytest.approx(0.0)
+    assert ekf.counters()["odometry_heading_rejected"] == 1
+    assert ekf.x[2] == pytest.approx(0.5)
+    assert ekf.P[2, 2] == pytest.approx(1e-6 + ekf.params.initial_sigma_theta_rad**2)
 
 
 def test_out_of_order_measurements_are_rejected_and_counted():
