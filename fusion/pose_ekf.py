@@ -64,13 +64,20 @@ update_position(z, R), update_heading(theta, var) -> UpdateResult.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from fusion import models
 from fusion.alignment import Deferred, GyroAlignment
+from fusion.ekf_update import (
+    EkfCounters,
+    UpdateResult,
+    chi2_gate,
+    is_pd,
+    joseph_update,
+    repair_pd,
+)
 from fusion.increments import GyroDelta, GyroDeltas, OdometryDeltas, RestBias
 from msgs import (
     GpsFix,
@@ -112,6 +119,10 @@ class PoseEkfParams:
     gps_max_lag_s: float = 0.25
     gps_lever_m: tuple[float, float] = (0.0, 0.0)
     gps_error_correlation_s: float = 0.0
+    gps_bias_states: bool = True
+    gps_bias_sigma_m: float = 2.0
+    gps_bias_tau_s: float = 300.0
+    gps_white_fraction: float = 0.3
     init_from_gps: bool = True
     gate_probability: float | None = 0.99
     initial_sigma_xy_m: float = 0.01
@@ -129,54 +140,30 @@ class PoseEkfParams:
                      "gyro_gamma", "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps",
                      "gps_min_sigma_m", "gps_max_lag_s", "gyro_max_lag_s", "gyro_max_defer_s", "gps_error_correlation_s",
                      "initial_sigma_xy_m", "initial_sigma_theta_rad", "bias_window_s",
+                     "gps_bias_sigma_m",
                      "bias_min_rest_s"):  # fmt: skip
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"PoseEkfParams.{name} must be finite and >= 0, got {v!r}")
+        if not (math.isfinite(self.gps_bias_tau_s) and self.gps_bias_tau_s > 0.0):
+            raise ValueError(
+                f"PoseEkfParams.gps_bias_tau_s must be > 0, got {self.gps_bias_tau_s!r}"
+            )
+        if not 0.0 < self.gps_white_fraction <= 1.0:
+            raise ValueError(
+                f"PoseEkfParams.gps_white_fraction must be in (0, 1], got {self.gps_white_fraction!r}"
+            )
         g = self.gate_probability
         if g is not None and not 0.0 < g < 1.0:
             raise ValueError(f"PoseEkfParams.gate_probability must be in (0, 1) or None, got {g!r}")
 
     def gate(self, dof: int) -> float:
         """Chi-square gate on the NIS for a measurement of ``dof`` dimensions (inf: off)."""
-        if self.gate_probability is None:
-            return math.inf
-        return float(chi2.ppf(self.gate_probability, dof))
+        return chi2_gate(self.gate_probability, dof)
 
-
-@dataclass(frozen=True, slots=True)
-class UpdateResult:
-    """What one measurement did: accepted or gated out, its NIS and dimension."""
-
-    kind: str
-    accepted: bool
-    nis: float
-    dof: int
-
-
-@dataclass
-class EkfCounters:
-    odometry: int = 0
-    gyro: int = 0
-    gps: int = 0
-    predictions: int = 0
-    gyro_fused: int = 0
-    gyro_misaligned: int = 0
-    gyro_merges: int = 0
-    odometry_heading_rejected: int = 0
-    gps_updates: int = 0
-    gps_rejected: int = 0
-    gps_no_fix: int = 0
-    gps_init: int = 0
-    heading_updates: int = 0
-    heading_rejected: int = 0
-    out_of_order_gps: int = 0
-    gps_timeouts: int = 0
-    gyro_timeouts: int = 0
-    covariance_repairs: int = 0
-    bad_input: int = 0
-    resets: int = 0
-    extra: dict[str, int] = field(default_factory=dict)
+    @property
+    def n_states(self) -> int:
+        return 5 if self.gps_bias_states else 3
 
 
 class PoseEkf:
@@ -203,9 +190,10 @@ class PoseEkf:
     # -- state -----------------------------------------------------------------------
     def _initial_cov(self) -> np.ndarray:
         p = self.params
-        return np.diag(
-            [p.initial_sigma_xy_m**2, p.initial_sigma_xy_m**2, p.initial_sigma_theta_rad**2]
-        )
+        d = [p.initial_sigma_xy_m**2, p.initial_sigma_xy_m**2, p.initial_sigma_theta_rad**2]
+        if p.gps_bias_states:
+            d += [p.gps_bias_sigma_m**2] * 2
+        return np.diag(d)
 
     def reset(self, pose: Pose2D | None = None, stamp_ns: int = 0) -> None:
         """Forget everything but the counters; restart at ``pose`` (default: the initial one).
@@ -215,7 +203,8 @@ class PoseEkf:
         """
         known = pose is not None or self._initial is not None
         pose = pose or self._initial or Pose2D()
-        self.x = np.array([pose.x, pose.y, wrap_angle(pose.theta)], dtype=float)
+        self.x = np.zeros(self.params.n_states)
+        self.x[:3] = [pose.x, pose.y, wrap_angle(pose.theta)]
         self.P = self._initial_cov()
         self.stamp_ns = int(stamp_ns)
         self._pose_set = known
@@ -233,17 +222,20 @@ class PoseEkf:
         stamp_ns: int | None = None,
         covariance: np.ndarray | tuple[float, ...] | None = None,
     ) -> None:
-        """Set the state (and covariance, 3x3 or 9 values; default the initial one)."""
-        cov = self._initial_cov() if covariance is None else np.asarray(covariance, float)
+        """Set the pose (and its covariance, 3x3 or 9 values; default the initial one).
+        The GPS bias states, if any, are kept, uncorrelated with the new pose."""
+        cov = self._initial_cov()[:3, :3] if covariance is None else np.asarray(covariance, float)
         cov = cov.reshape(3, 3)
-        if not np.all(np.isfinite(cov)) or not _is_pd(cov):
+        if not np.all(np.isfinite(cov)) or not is_pd(cov):
             raise ValueError(
                 "set_pose: covariance must be a finite symmetric positive-definite 3x3"
             )
         if not all(math.isfinite(v) for v in (pose.x, pose.y, pose.theta)):
             raise ValueError(f"set_pose: pose must be finite, got {pose}")
-        self.x = np.array([pose.x, pose.y, wrap_angle(pose.theta)], dtype=float)
-        self.P = 0.5 * (cov + cov.T)
+        self.x[:3] = [pose.x, pose.y, wrap_angle(pose.theta)]
+        self.P[:3, :] = 0.0
+        self.P[:, :3] = 0.0
+        self.P[:3, :3] = 0.5 * (cov + cov.T)
         if stamp_ns is not None:
             self.stamp_ns = int(stamp_ns)
         self._pose_set = True
@@ -253,6 +245,13 @@ class PoseEkf:
         return Pose2D(float(self.x[0]), float(self.x[1]), float(self.x[2]))
 
     @property
+    def gps_bias_m(self) -> tuple[float, float]:
+        """The estimated GPS bias (east, north), zeros without bias states."""
+        if not self.params.gps_bias_states:
+            return (0.0, 0.0)
+        return (float(self.x[3]), float(self.x[4]))
+
+    @property
     def gyro_bias_radps(self) -> float:
         return self._bias.bias_radps
 
@@ -260,15 +259,15 @@ class PoseEkf:
         return PoseEstimate(
             stamp_ns=self.stamp_ns,
             pose=self.pose,
-            covariance=tuple(float(v) for v in self.P.ravel()),
+            covariance=tuple(float(v) for v in self.P[:3, :3].ravel()),
             frame=self.params.frame,
             source="pose_ekf",
         )
 
     def bounds(self, k: float = 3.0) -> PoseBox:
         """The k-sigma box on x, y, theta (theta not wrapped: lo/hi may pass +-pi)."""
-        s = np.sqrt(np.maximum(np.diag(self.P), 0.0)) * k
-        x, y, th = (float(v) for v in self.x)
+        s = np.sqrt(np.maximum(np.diag(self.P)[:3], 0.0)) * k
+        x, y, th = (float(v) for v in self.x[:3])
         return PoseBox(
             self.stamp_ns,
             self.params.robot,
@@ -285,8 +284,10 @@ class PoseEkf:
         dr: float,
         dtheta_gyro: float | None = None,
         gyro_var: float | None = None,
+        dt_s: float = 0.0,
     ) -> UpdateResult | None:
-        """Propagate by wheel displacements (m); fuse a gyro step (rad, variance rad^2)."""
+        """Propagate by wheel displacements (m); fuse a gyro step (rad, variance rad^2);
+        the GPS bias states (if any) by their Gauss-Markov model over ``dt_s``."""
         p = self.params
         if not (math.isfinite(dl) and math.isfinite(dr)):
             self._count.bad_input += 1
@@ -322,9 +323,18 @@ class PoseEkf:
                 qu = np.diag([qu[0, 0], rg])
                 self._count.odometry_heading_rejected += 1
             result = UpdateResult("gyro", accepted, nis, 1)
-        f, g = models.motion_jacobians(self.x, u, p.heading_point)
-        self.x = models.motion(self.x, u, p.heading_point)
-        self.P = f @ self.P @ f.T + g @ qu @ g.T
+        n = p.n_states
+        f3, g3 = models.motion_jacobians(self.x[:3], u, p.heading_point)
+        f, g, q = np.eye(n), np.zeros((n, 2)), np.zeros((n, n))
+        f[:3, :3], g[:3, :] = f3, g3
+        self.x[:3] = models.motion(self.x[:3], u, p.heading_point)
+        if p.gps_bias_states:
+            self.x[3:5], a, qb = models.gauss_markov(
+                self.x[3:5], dt_s, p.gps_bias_tau_s, p.gps_bias_sigma_m
+            )
+            f[3, 3] = f[4, 4] = a
+            q[3, 3] = q[4, 4] = qb
+        self.P = f @ self.P @ f.T + g @ qu @ g.T + q
         self.P = 0.5 * (self.P + self.P.T)
         self._count.predictions += 1
         return result
@@ -340,13 +350,18 @@ class PoseEkf:
 
     def update_position(self, z: np.ndarray, r: np.ndarray, kind: str = "gps") -> UpdateResult:
         """Position measurement z (2,) with covariance R (2x2), gated."""
-        h, hj = models.position_measurement(self.x, self.params.gps_lever_m)
+        if self.params.gps_bias_states and kind == "gps":
+            h, hj = models.biased_position_measurement(self.x, self.params.gps_lever_m)
+        else:
+            h, hj = models.position_measurement(self.x[:3], self.params.gps_lever_m)
+            hj = np.hstack([hj, np.zeros((2, self.x.size - 3))])
         nu = np.asarray(z, float) - h
         return self._update(kind, nu, hj, np.asarray(r, float))
 
     def update_heading(self, theta: float, var: float) -> UpdateResult:
         """Absolute heading measurement (rad, variance rad^2), gated."""
-        h, hj = models.heading_measurement(self.x)
+        h, hj = models.heading_measurement(self.x[:3])
+        hj = np.hstack([hj, np.zeros((1, self.x.size - 3))])
         nu = np.array([wrap_angle(theta - h[0])])
         return self._update("heading", nu, hj, np.array([[var]]))
 
@@ -355,26 +370,15 @@ class PoseEkf:
         if not (np.all(np.isfinite(nu)) and np.all(np.isfinite(r))):
             self._count.bad_input += 1
             return UpdateResult(kind, False, math.nan, dof)
-        ph = self.P @ hj.T
-        s = hj @ ph + r
-        s_inv = np.linalg.inv(s)
-        nis = float(nu @ s_inv @ nu)
+        gate = self._gates.get(dof, self.params.gate(dof))
+        x, pj, nis, accepted, repaired = joseph_update(self.x, self.P, nu, hj, r, gate)
         self.last_nis[kind] = nis
-        if nis > self._gates.get(dof, self.params.gate(dof)):
+        if not accepted:
             self._bump(f"{kind}_rejected")
             return UpdateResult(kind, False, nis, dof)
-        k = ph @ s_inv
-        self.x = self.x + k @ nu
-        self.x[2] = wrap_angle(self.x[2])
-        ikh = np.eye(3) - k @ hj
-        pj = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form
-        pj = 0.5 * (pj + pj.T)
-        if not _is_pd(pj):
-            w, v = np.linalg.eigh(pj)
-            pj = (v * np.maximum(w, 1e-12)) @ v.T
-            pj = 0.5 * (pj + pj.T)
-            self._count.covariance_repairs += 1
-        self.P = pj
+        x[2] = wrap_angle(x[2])
+        self.x, self.P = x, pj
+        self._count.covariance_repairs += int(repaired)
         self._bump(f"{kind}_updates")
         return UpdateResult(kind, True, nis, dof)
 
@@ -444,13 +448,13 @@ class PoseEkf:
             nu = dg - step.dtheta_rad
             if not step.at_rest and nu * nu / (var_enc + rg) > self._gates[1]:
                 self._align.postpone(step, gyro, var_enc, x0, y0)
-                self.predict(float(dl), float(dr))
+                self.predict(float(dl), float(dr), dt_s=step.dt_s)
             else:
-                self.predict(float(dl), float(dr), dg, rg)
+                self.predict(float(dl), float(dr), dg, rg, dt_s=step.dt_s)
         else:
             if decision in ("deferred", "merged"):
                 self._align.defer(step, var_enc, x0, y0)
-            self.predict(float(dl), float(dr))
+            self.predict(float(dl), float(dr), dt_s=step.dt_s)
             if decision == "merged":
                 d = self._align.close()
                 if d is not None and gyro is not None:
@@ -494,9 +498,8 @@ class PoseEkf:
         self.x[2] = wrap_angle(self.x[2] + delta)
         pt = self.P.copy()
         pt[2, 2] = max(pt[2, 2] - k * d.var_enc + (rg if k == 1.0 else 0.0), 1e-12)
-        if not _is_pd(pt):
-            w, v = np.linalg.eigh(pt)
-            pt = (v * np.maximum(w, 1e-12)) @ v.T
+        if not is_pd(pt):
+            pt = repair_pd(pt)
             self._count.covariance_repairs += 1
         self.P = 0.5 * (pt + pt.T)
         self._count.gyro_merges += 1
@@ -513,6 +516,9 @@ class PoseEkf:
         else:
             return None
         se, sn = max(se, p.gps_min_sigma_m), max(sn, p.gps_min_sigma_m)
+        if p.gps_bias_states:  # the slowly wandering part is a state: R is the white part
+            se, sn = se * p.gps_white_fraction, sn * p.gps_white_fraction
+            se, sn = max(se, p.gps_min_sigma_m), max(sn, p.gps_min_sigma_m)
         z = np.array([msg.east_m, msg.north_m], dtype=float)
         r = np.diag([se * se, sn * sn])
         if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
@@ -538,10 +544,15 @@ class PoseEkf:
         z, r = meas
         if not self._pose_set and p.init_from_gps:
             lever = models.position_measurement(np.array([0.0, 0.0, self.x[2]]), p.gps_lever_m)[0]
-            self.x[:2] = z - lever
+            self.x[:2] = z - lever - (self.x[3:5] if p.gps_bias_states else 0.0)
             self.P[:2, :] = 0.0
             self.P[:, :2] = 0.0
             self.P[:2, :2] = r
+            if p.gps_bias_states:  # position error = -(bias error) - white noise
+                pb = self.P[3:5, 3:5]
+                self.P[:2, :2] = r + pb
+                self.P[:2, 3:5] = -pb
+                self.P[3:5, :2] = -pb
             self._pose_set = True
             self._count.gps_init += 1
             return self.estimate()
@@ -594,11 +605,3 @@ class PoseEkf:
             }
         )
         return out
-
-
-def _is_pd(m: np.ndarray) -> bool:
-    try:
-        np.linalg.cholesky(m)
-    except np.linalg.LinAlgError:
-        return False
-    return True
