@@ -12,8 +12,18 @@ dtheta_g - dtheta, S = Q_u[1,1] + R_g), which is exact for an increment measurem
 unlike treating the drifting gyro angle as an absolute heading. Then x = f(x, u),
 P = F P F^T + G Q_u G^T (eq. 4, A = F, W = G).
 
+GPS bias states (``gps_bias_states``, on by default): the state is augmented with the
+receiver's bias (b_east, b_north), a first-order Gauss-Markov process (fusion.models:
+b' = exp(-dt/tau) b + w, stationary sigma ``gps_bias_sigma_m``, tau ``gps_bias_tau_s``;
+defaults and their source in fusion.pose_ekf_params), propagated at every odometry step
+over its dt; a fix measures antenna position + b with R the white part of its claimed
+sigma. Without it the filter takes each fix's whole error as white and its 3-sigma box
+stops containing the truth on long runs (bench/pose_ekf.py). ``x`` and ``P`` hold the
+full state; estimates and bounds give the pose block.
+
 Updates (eq. 4), Joseph form P = (I - K H) P (I - K H)^T + K R K^T, symmetrised, with a
-Cholesky check that repairs (and counts) a covariance that lost positive definiteness:
+Cholesky check that repairs (and counts) a covariance that lost positive definiteness
+(fusion.ekf_update, with the gates and counters):
 - GPS position (GpsFix.east_m/north_m, local metres of the NMEA driver): R from the GST
   standard deviations when present, else per-axis sigma = HDOP x UERE / sqrt(2) (HDOP x
   UERE is the horizontal DRMS); fixes without a 2D/3D fix or local metres are counted
@@ -64,7 +74,6 @@ update_position(z, R), update_heading(theta, var) -> UpdateResult.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -73,12 +82,12 @@ from fusion.alignment import Deferred, GyroAlignment
 from fusion.ekf_update import (
     EkfCounters,
     UpdateResult,
-    chi2_gate,
     is_pd,
     joseph_update,
     repair_pd,
 )
 from fusion.increments import GyroDelta, GyroDeltas, OdometryDeltas, RestBias
+from fusion.pose_ekf_params import DEG, PoseEkfParams, gps_fix_measurement
 from msgs import (
     GpsFix,
     GyroSample,
@@ -90,80 +99,8 @@ from msgs import (
     wrap_angle,
 )
 
-DEG = math.pi / 180.0
 NS = 1e-9
-
-
-@dataclass(frozen=True)
-class PoseEkfParams:
-    """Noise, gating and timeout parameters of the pose EKF (SI units)."""
-
-    wheelbase_m: float = 0.33
-    wheel_noise_m_per_sqrt_m: float = 0.005
-    wheel_noise_floor_m: float = 1e-4
-    turn_noise_fraction: float = 0.1
-    heading_point: float = 0.5
-    gyro_gamma: float = 0.02
-    gyro_arw_rad_per_sqrt_s: float = 0.015 * DEG
-    gyro_bias_sigma_radps: float = 0.005 * DEG
-    gyro_timeout_s: float = 0.5
-    gyro_max_lag_s: float = 0.05
-    gyro_max_defer_s: float = 2.0
-    odometry_timeout_s: float = 0.5
-    learn_bias_at_rest: bool = True
-    bias_window_s: float = 30.0
-    bias_min_rest_s: float = 0.5
-    gps_uere_m: float = 4.0
-    gps_min_sigma_m: float = 0.02
-    gps_timeout_s: float = 3.0
-    gps_max_lag_s: float = 0.25
-    gps_lever_m: tuple[float, float] = (0.0, 0.0)
-    gps_error_correlation_s: float = 0.0
-    gps_bias_states: bool = True
-    gps_bias_sigma_m: float = 2.0
-    gps_bias_tau_s: float = 300.0
-    gps_white_fraction: float = 0.3
-    init_from_gps: bool = True
-    gate_probability: float | None = 0.99
-    initial_sigma_xy_m: float = 0.01
-    initial_sigma_theta_rad: float = 0.1 * DEG
-    frame: str = "map"
-    robot: str = "r1"
-
-    def __post_init__(self) -> None:
-        for name in ("wheelbase_m", "gps_uere_m", "gps_timeout_s", "gyro_timeout_s",
-                     "odometry_timeout_s"):  # fmt: skip
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"PoseEkfParams.{name} must be finite and > 0, got {v!r}")
-        for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "turn_noise_fraction",
-                     "gyro_gamma", "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps",
-                     "gps_min_sigma_m", "gps_max_lag_s", "gyro_max_lag_s", "gyro_max_defer_s", "gps_error_correlation_s",
-                     "initial_sigma_xy_m", "initial_sigma_theta_rad", "bias_window_s",
-                     "gps_bias_sigma_m",
-                     "bias_min_rest_s"):  # fmt: skip
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"PoseEkfParams.{name} must be finite and >= 0, got {v!r}")
-        if not (math.isfinite(self.gps_bias_tau_s) and self.gps_bias_tau_s > 0.0):
-            raise ValueError(
-                f"PoseEkfParams.gps_bias_tau_s must be > 0, got {self.gps_bias_tau_s!r}"
-            )
-        if not 0.0 < self.gps_white_fraction <= 1.0:
-            raise ValueError(
-                f"PoseEkfParams.gps_white_fraction must be in (0, 1], got {self.gps_white_fraction!r}"
-            )
-        g = self.gate_probability
-        if g is not None and not 0.0 < g < 1.0:
-            raise ValueError(f"PoseEkfParams.gate_probability must be in (0, 1) or None, got {g!r}")
-
-    def gate(self, dof: int) -> float:
-        """Chi-square gate on the NIS for a measurement of ``dof`` dimensions (inf: off)."""
-        return chi2_gate(self.gate_probability, dof)
-
-    @property
-    def n_states(self) -> int:
-        return 5 if self.gps_bias_states else 3
+__all__ = ["DEG", "PoseEkf", "PoseEkfParams", "UpdateResult"]
 
 
 class PoseEkf:
@@ -506,24 +443,7 @@ class PoseEkf:
 
     def gps_measurement(self, msg: GpsFix) -> tuple[np.ndarray, np.ndarray] | None:
         """(z, R) of a fix in local metres, or None when it has no usable position."""
-        if msg.mode < 2 or msg.quality == 0 or msg.east_m is None or msg.north_m is None:
-            return None
-        p = self.params
-        if msg.std_lat_m is not None and msg.std_lon_m is not None:
-            se, sn = msg.std_lon_m, msg.std_lat_m
-        elif msg.hdop is not None:
-            se = sn = msg.hdop * p.gps_uere_m / math.sqrt(2.0)
-        else:
-            return None
-        se, sn = max(se, p.gps_min_sigma_m), max(sn, p.gps_min_sigma_m)
-        if p.gps_bias_states:  # the slowly wandering part is a state: R is the white part
-            se, sn = se * p.gps_white_fraction, sn * p.gps_white_fraction
-            se, sn = max(se, p.gps_min_sigma_m), max(sn, p.gps_min_sigma_m)
-        z = np.array([msg.east_m, msg.north_m], dtype=float)
-        r = np.diag([se * se, sn * sn])
-        if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
-            return None
-        return z, r
+        return gps_fix_measurement(msg, self.params)
 
     def feed_gps(self, msg: GpsFix) -> PoseEstimate | None:
         """Update on a fix; None if it was skipped (no fix, out of order, gated out)."""
