@@ -31,6 +31,14 @@ keep the paper's model: sigma_gyro^2 += arw^2 dt + (bias_sigma dt)^2. The gyro's
 learnt while the robot stands still (odometry not moving for ``bias_min_rest_s``),
 averaged over up to ``bias_window_s`` of rest (fusion.increments.RestBias), and removed.
 
+Which gyro change goes with which odometry step is decided by fusion.alignment: a step
+the gyro has not caught up with (late or bunched messages after a host stall) is
+predicted on the encoders and corrected retroactively once the gyro covers it; a step
+whose two changes disagree beyond the chi-square gate ``gyro_gate_probability`` is
+postponed once and fused over the longer interval, and if they still disagree the
+encoders are taken as the outlier (the gyro cannot jump, a bad SIP can). No gyro
+rotation is dropped while the gyro runs, so no burst leaves a permanent offset.
+
 Position (as in the paper): x, y integrate the encoder distance along the fused heading
 (midpoint of the step).
 
