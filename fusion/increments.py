@@ -13,7 +13,10 @@ Both fusion filters work on what happened *between* two odometry messages:
   differences (wrapped, so an unwrapped or a wrapped angle both work) until the filter
   takes it at the next odometry step, so gyro and odometry may run at any rates. A
   difference implying more than ``max_rate_radps`` (the device re-zeroed its angle, a
-  reconnect) is counted (``discontinuities``) and replaced by rate x dt.
+  reconnect) is counted (``discontinuities``) and replaced by rate x dt. Samples sharing
+  one stamp (packets read together after a stall, all stamped with the read time) are
+  kept, each change checked against ``max_rate_radps`` x max(dt, ``min_period_s``):
+  the device's angle is cumulative, so their rotation is real even if their stamps are not.
 
 Pure bookkeeping: no clocks, times come from the message stamps (integer ns).
 """
@@ -58,6 +61,7 @@ class OdometryDeltas:
         self.messages = 0
         self.out_of_order = 0
         self.jumps = 0
+        self.baselined = False  # the last feed set a new baseline (first message or jump)
 
     def reset(self) -> None:
         self.last = None
@@ -66,8 +70,10 @@ class OdometryDeltas:
         """The step since the previous message, or None (first, out of order, jump)."""
         self.messages += 1
         prev = self.last
+        self.baselined = False
         if prev is None:
             self.last = msg
+            self.baselined = True
             return None
         if msg.stamp_ns <= prev.stamp_ns:
             self.out_of_order += 1
@@ -81,6 +87,7 @@ class OdometryDeltas:
         # Slack of 5 cm / 0.1 rad absorbs quantisation and stamp jitter on short steps.
         if chord > self.max_speed_mps * dt + 0.05 or abs(dth) > self.max_rate_radps * dt + 0.1:
             self.jumps += 1
+            self.baselined = True
             return None
         mid = p0.theta + 0.5 * dth
         along = dx * math.cos(mid) + dy * math.sin(mid)
@@ -100,8 +107,9 @@ class GyroDelta:
 class GyroDeltas:
     """Accumulates GyroSample angle differences between two ``take()`` calls."""
 
-    def __init__(self, max_rate_radps: float = 2.0 * math.pi):
+    def __init__(self, max_rate_radps: float = 2.0 * math.pi, min_period_s: float = 0.005):
         self.max_rate_radps = max_rate_radps
+        self.min_period_s = min_period_s
         self.last: GyroSample | None = None
         self.messages = 0
         self.out_of_order = 0
@@ -124,13 +132,13 @@ class GyroDeltas:
         if prev is None:
             self.last = msg
             return
-        if msg.stamp_ns <= prev.stamp_ns:
+        if msg.stamp_ns < prev.stamp_ns:
             self.out_of_order += 1
             return
         self.last = msg
         dt = (msg.stamp_ns - prev.stamp_ns) * NS
         d = wrap_angle(msg.angle_rad - prev.angle_rad)
-        if not math.isfinite(d) or abs(d) > self.max_rate_radps * dt + 1e-3:
+        if not math.isfinite(d) or abs(d) > self.max_rate_radps * max(dt, self.min_period_s) + 1e-3:
             self.discontinuities += 1
             rate = msg.rate_radps if math.isfinite(msg.rate_radps) else 0.0
             d = max(-self.max_rate_radps, min(self.max_rate_radps, rate)) * dt

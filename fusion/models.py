@@ -26,6 +26,11 @@ Measurements: GPS position of an antenna mounted at (ax, ay) on the robot,
     h = [x + ax cos theta - ay sin theta, y + ax sin theta + ay cos theta],
     H = [[1, 0, -ax sin theta - ay cos theta], [0, 1, ax cos theta - ay sin theta]];
 an absolute heading, h = theta, H = [0, 0, 1] (innovation wrapped to (-pi, pi]).
+
+GPS bias (optional states b = (b_east, b_north)): a first-order Gauss-Markov process,
+    b' = a b + w,  a = exp(-dt / tau),  Var(w) = sigma_b^2 (1 - a^2) per axis,
+whose stationary standard deviation is sigma_b; the GPS then measures
+h = position of the antenna + b, H = [H_position, I_2].
 """
 
 from __future__ import annotations
@@ -112,3 +117,20 @@ def position_measurement(
 def heading_measurement(state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(h, H) of an absolute heading sensor."""
     return np.array([state[2]]), np.array([[0.0, 0.0, 1.0]])
+
+
+def gauss_markov(
+    b: np.ndarray, dt_s: float, tau_s: float, sigma: float
+) -> tuple[np.ndarray, float, float]:
+    """(b', a, q): the mean propagation of a first-order Gauss-Markov state over dt, its
+    transition factor a = exp(-dt/tau) (the Jacobian) and the process noise variance."""
+    a = math.exp(-max(dt_s, 0.0) / tau_s)
+    return a * np.asarray(b, float), a, sigma * sigma * (1.0 - a * a)
+
+
+def biased_position_measurement(
+    state: np.ndarray, lever_m: tuple[float, float] = (0.0, 0.0)
+) -> tuple[np.ndarray, np.ndarray]:
+    """(h, H) of the GPS on the state (x, y, theta, b_east, b_north): antenna + bias."""
+    h, jac = position_measurement(state[:3], lever_m)
+    return h + state[3:5], np.hstack([jac, np.eye(2)])

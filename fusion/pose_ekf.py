@@ -12,8 +12,18 @@ dtheta_g - dtheta, S = Q_u[1,1] + R_g), which is exact for an increment measurem
 unlike treating the drifting gyro angle as an absolute heading. Then x = f(x, u),
 P = F P F^T + G Q_u G^T (eq. 4, A = F, W = G).
 
+GPS bias states (``gps_bias_states``, on by default): the state is augmented with the
+receiver's bias (b_east, b_north), a first-order Gauss-Markov process (fusion.models:
+b' = exp(-dt/tau) b + w, stationary sigma ``gps_bias_sigma_m``, tau ``gps_bias_tau_s``;
+defaults and their source in fusion.pose_ekf_params), propagated at every odometry step
+over its dt; a fix measures antenna position + b with R the white part of its claimed
+sigma. Without it the filter takes each fix's whole error as white and its 3-sigma box
+stops containing the truth on long runs (bench/pose_ekf.py). ``x`` and ``P`` hold the
+full state; estimates and bounds give the pose block.
+
 Updates (eq. 4), Joseph form P = (I - K H) P (I - K H)^T + K R K^T, symmetrised, with a
-Cholesky check that repairs (and counts) a covariance that lost positive definiteness:
+Cholesky check that repairs (and counts) a covariance that lost positive definiteness
+(fusion.ekf_update, with the gates and counters):
 - GPS position (GpsFix.east_m/north_m, local metres of the NMEA driver): R from the GST
   standard deviations when present, else per-axis sigma = HDOP x UERE / sqrt(2) (HDOP x
   UERE is the horizontal DRMS); fixes without a 2D/3D fix or local metres are counted
@@ -33,7 +43,11 @@ Gating: every measurement's squared Mahalanobis distance (NIS) nu^T S^-1 nu is c
 with the chi-square quantile of its dimension at ``gate_probability`` (default 0.99:
 9.21 for GPS with 2 dof, 6.63 for the gyro step and the heading with 1 dof, from
 scipy.stats.chi2.ppf); beyond it the measurement is rejected and counted (gps_rejected,
-gyro_rejected, heading_rejected). ``gate_probability=None`` turns gating off.
+heading_rejected). For the gyro step the verdict goes the other way: the gyro integrates
+a rate and cannot jump, the encoders can (a bad or stale SIP, a spinning wheel), so the
+encoders' heading change is the outlier and is replaced by the gyro's
+(odometry_heading_rejected). Which gyro change goes with which odometry step (late and
+bunched messages after a stall) is decided by fusion.alignment. ``gate_probability=None`` turns gating off.
 
 Timeouts: a sensor silent for longer than its timeout (relative to the odometry stamps)
 is flagged stale (``gps_stale``, ``gyro_stale``; transitions counted) and the filter
@@ -60,13 +74,20 @@ update_position(z, R), update_heading(theta, var) -> UpdateResult.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from fusion import models
-from fusion.increments import GyroDeltas, OdometryDeltas, RestBias
+from fusion.alignment import Deferred, GyroAlignment
+from fusion.ekf_update import (
+    EkfCounters,
+    UpdateResult,
+    is_pd,
+    joseph_update,
+    repair_pd,
+)
+from fusion.increments import GyroDelta, GyroDeltas, OdometryDeltas, RestBias
+from fusion.pose_ekf_params import DEG, PoseEkfParams, gps_fix_measurement
 from msgs import (
     GpsFix,
     GyroSample,
@@ -78,97 +99,8 @@ from msgs import (
     wrap_angle,
 )
 
-DEG = math.pi / 180.0
 NS = 1e-9
-
-
-@dataclass(frozen=True)
-class PoseEkfParams:
-    """Noise, gating and timeout parameters of the pose EKF (SI units)."""
-
-    wheelbase_m: float = 0.33
-    wheel_noise_m_per_sqrt_m: float = 0.005
-    wheel_noise_floor_m: float = 1e-4
-    turn_noise_fraction: float = 0.1
-    heading_point: float = 0.5
-    gyro_gamma: float = 0.02
-    gyro_arw_rad_per_sqrt_s: float = 0.015 * DEG
-    gyro_bias_sigma_radps: float = 0.005 * DEG
-    gyro_timeout_s: float = 0.5
-    odometry_timeout_s: float = 0.5
-    learn_bias_at_rest: bool = True
-    bias_window_s: float = 30.0
-    bias_min_rest_s: float = 0.5
-    gps_uere_m: float = 4.0
-    gps_min_sigma_m: float = 0.02
-    gps_timeout_s: float = 3.0
-    gps_max_lag_s: float = 0.25
-    gps_lever_m: tuple[float, float] = (0.0, 0.0)
-    gps_error_correlation_s: float = 0.0
-    init_from_gps: bool = True
-    gate_probability: float | None = 0.99
-    initial_sigma_xy_m: float = 0.01
-    initial_sigma_theta_rad: float = 0.1 * DEG
-    frame: str = "map"
-    robot: str = "r1"
-
-    def __post_init__(self) -> None:
-        for name in ("wheelbase_m", "gps_uere_m", "gps_timeout_s", "gyro_timeout_s",
-                     "odometry_timeout_s"):  # fmt: skip
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"PoseEkfParams.{name} must be finite and > 0, got {v!r}")
-        for name in ("wheel_noise_m_per_sqrt_m", "wheel_noise_floor_m", "turn_noise_fraction",
-                     "gyro_gamma", "gyro_arw_rad_per_sqrt_s", "gyro_bias_sigma_radps",
-                     "gps_min_sigma_m", "gps_max_lag_s", "gps_error_correlation_s",
-                     "initial_sigma_xy_m", "initial_sigma_theta_rad", "bias_window_s",
-                     "bias_min_rest_s"):  # fmt: skip
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"PoseEkfParams.{name} must be finite and >= 0, got {v!r}")
-        g = self.gate_probability
-        if g is not None and not 0.0 < g < 1.0:
-            raise ValueError(f"PoseEkfParams.gate_probability must be in (0, 1) or None, got {g!r}")
-
-    def gate(self, dof: int) -> float:
-        """Chi-square gate on the NIS for a measurement of ``dof`` dimensions (inf: off)."""
-        if self.gate_probability is None:
-            return math.inf
-        return float(chi2.ppf(self.gate_probability, dof))
-
-
-@dataclass(frozen=True, slots=True)
-class UpdateResult:
-    """What one measurement did: accepted or gated out, its NIS and dimension."""
-
-    kind: str
-    accepted: bool
-    nis: float
-    dof: int
-
-
-@dataclass
-class EkfCounters:
-    odometry: int = 0
-    gyro: int = 0
-    gps: int = 0
-    predictions: int = 0
-    gyro_fused: int = 0
-    gyro_rejected: int = 0
-    gyro_misaligned: int = 0
-    gps_updates: int = 0
-    gps_rejected: int = 0
-    gps_no_fix: int = 0
-    gps_init: int = 0
-    heading_updates: int = 0
-    heading_rejected: int = 0
-    out_of_order_gps: int = 0
-    gps_timeouts: int = 0
-    gyro_timeouts: int = 0
-    covariance_repairs: int = 0
-    bad_input: int = 0
-    resets: int = 0
-    extra: dict[str, int] = field(default_factory=dict)
+__all__ = ["DEG", "PoseEkf", "PoseEkfParams", "UpdateResult"]
 
 
 class PoseEkf:
@@ -179,6 +111,7 @@ class PoseEkf:
         self._gates = {1: p.gate(1), 2: p.gate(2)}
         self._odo = OdometryDeltas()
         self._gyro = GyroDeltas()
+        self._align = GyroAlignment(self._gyro, p.gyro_max_lag_s, p.gyro_max_defer_s)
         self._bias = RestBias(p.bias_window_s, p.bias_min_rest_s)
         self._count = EkfCounters()
         self.last_nis: dict[str, float] = {"gps": math.nan, "gyro": math.nan, "heading": math.nan}
@@ -194,9 +127,10 @@ class PoseEkf:
     # -- state -----------------------------------------------------------------------
     def _initial_cov(self) -> np.ndarray:
         p = self.params
-        return np.diag(
-            [p.initial_sigma_xy_m**2, p.initial_sigma_xy_m**2, p.initial_sigma_theta_rad**2]
-        )
+        d = [p.initial_sigma_xy_m**2, p.initial_sigma_xy_m**2, p.initial_sigma_theta_rad**2]
+        if p.gps_bias_states:
+            d += [p.gps_bias_sigma_m**2] * 2
+        return np.diag(d)
 
     def reset(self, pose: Pose2D | None = None, stamp_ns: int = 0) -> None:
         """Forget everything but the counters; restart at ``pose`` (default: the initial one).
@@ -206,12 +140,14 @@ class PoseEkf:
         """
         known = pose is not None or self._initial is not None
         pose = pose or self._initial or Pose2D()
-        self.x = np.array([pose.x, pose.y, wrap_angle(pose.theta)], dtype=float)
+        self.x = np.zeros(self.params.n_states)
+        self.x[:3] = [pose.x, pose.y, wrap_angle(pose.theta)]
         self.P = self._initial_cov()
         self.stamp_ns = int(stamp_ns)
         self._pose_set = known
         self._odo.reset()
         self._gyro.reset()
+        self._align.reset()
         self._last_gps_ns = None
         self._last_gps_used_ns = None
         self._speed_mps = 0.0
@@ -223,17 +159,20 @@ class PoseEkf:
         stamp_ns: int | None = None,
         covariance: np.ndarray | tuple[float, ...] | None = None,
     ) -> None:
-        """Set the state (and covariance, 3x3 or 9 values; default the initial one)."""
-        cov = self._initial_cov() if covariance is None else np.asarray(covariance, float)
+        """Set the pose (and its covariance, 3x3 or 9 values; default the initial one).
+        The GPS bias states, if any, are kept, uncorrelated with the new pose."""
+        cov = self._initial_cov()[:3, :3] if covariance is None else np.asarray(covariance, float)
         cov = cov.reshape(3, 3)
-        if not np.all(np.isfinite(cov)) or not _is_pd(cov):
+        if not np.all(np.isfinite(cov)) or not is_pd(cov):
             raise ValueError(
                 "set_pose: covariance must be a finite symmetric positive-definite 3x3"
             )
         if not all(math.isfinite(v) for v in (pose.x, pose.y, pose.theta)):
             raise ValueError(f"set_pose: pose must be finite, got {pose}")
-        self.x = np.array([pose.x, pose.y, wrap_angle(pose.theta)], dtype=float)
-        self.P = 0.5 * (cov + cov.T)
+        self.x[:3] = [pose.x, pose.y, wrap_angle(pose.theta)]
+        self.P[:3, :] = 0.0
+        self.P[:, :3] = 0.0
+        self.P[:3, :3] = 0.5 * (cov + cov.T)
         if stamp_ns is not None:
             self.stamp_ns = int(stamp_ns)
         self._pose_set = True
@@ -243,6 +182,13 @@ class PoseEkf:
         return Pose2D(float(self.x[0]), float(self.x[1]), float(self.x[2]))
 
     @property
+    def gps_bias_m(self) -> tuple[float, float]:
+        """The estimated GPS bias (east, north), zeros without bias states."""
+        if not self.params.gps_bias_states:
+            return (0.0, 0.0)
+        return (float(self.x[3]), float(self.x[4]))
+
+    @property
     def gyro_bias_radps(self) -> float:
         return self._bias.bias_radps
 
@@ -250,15 +196,15 @@ class PoseEkf:
         return PoseEstimate(
             stamp_ns=self.stamp_ns,
             pose=self.pose,
-            covariance=tuple(float(v) for v in self.P.ravel()),
+            covariance=tuple(float(v) for v in self.P[:3, :3].ravel()),
             frame=self.params.frame,
             source="pose_ekf",
         )
 
     def bounds(self, k: float = 3.0) -> PoseBox:
         """The k-sigma box on x, y, theta (theta not wrapped: lo/hi may pass +-pi)."""
-        s = np.sqrt(np.maximum(np.diag(self.P), 0.0)) * k
-        x, y, th = (float(v) for v in self.x)
+        s = np.sqrt(np.maximum(np.diag(self.P)[:3], 0.0)) * k
+        x, y, th = (float(v) for v in self.x[:3])
         return PoseBox(
             self.stamp_ns,
             self.params.robot,
@@ -275,8 +221,10 @@ class PoseEkf:
         dr: float,
         dtheta_gyro: float | None = None,
         gyro_var: float | None = None,
+        dt_s: float = 0.0,
     ) -> UpdateResult | None:
-        """Propagate by wheel displacements (m); fuse a gyro step (rad, variance rad^2)."""
+        """Propagate by wheel displacements (m); fuse a gyro step (rad, variance rad^2);
+        the GPS bias states (if any) by their Gauss-Markov model over ``dt_s``."""
         p = self.params
         if not (math.isfinite(dl) and math.isfinite(dr)):
             self._count.bad_input += 1
@@ -305,11 +253,25 @@ class PoseEkf:
                 qu = 0.5 * (qu + qu.T)
                 self._count.gyro_fused += 1
             else:
-                self._count.gyro_rejected += 1
+                # Encoders and gyro disagree beyond the gate over an aligned interval: the
+                # gyro integrates a rate and cannot jump, the encoders can (a bad or stale
+                # SIP, a wheel spinning): the encoders' heading change is the outlier.
+                u = np.array([u[0], dtheta_gyro])
+                qu = np.diag([qu[0, 0], rg])
+                self._count.odometry_heading_rejected += 1
             result = UpdateResult("gyro", accepted, nis, 1)
-        f, g = models.motion_jacobians(self.x, u, p.heading_point)
-        self.x = models.motion(self.x, u, p.heading_point)
-        self.P = f @ self.P @ f.T + g @ qu @ g.T
+        n = p.n_states
+        f3, g3 = models.motion_jacobians(self.x[:3], u, p.heading_point)
+        f, g, q = np.eye(n), np.zeros((n, 2)), np.zeros((n, n))
+        f[:3, :3], g[:3, :] = f3, g3
+        self.x[:3] = models.motion(self.x[:3], u, p.heading_point)
+        if p.gps_bias_states:
+            self.x[3:5], a, qb = models.gauss_markov(
+                self.x[3:5], dt_s, p.gps_bias_tau_s, p.gps_bias_sigma_m
+            )
+            f[3, 3] = f[4, 4] = a
+            q[3, 3] = q[4, 4] = qb
+        self.P = f @ self.P @ f.T + g @ qu @ g.T + q
         self.P = 0.5 * (self.P + self.P.T)
         self._count.predictions += 1
         return result
@@ -325,13 +287,18 @@ class PoseEkf:
 
     def update_position(self, z: np.ndarray, r: np.ndarray, kind: str = "gps") -> UpdateResult:
         """Position measurement z (2,) with covariance R (2x2), gated."""
-        h, hj = models.position_measurement(self.x, self.params.gps_lever_m)
+        if self.params.gps_bias_states and kind == "gps":
+            h, hj = models.biased_position_measurement(self.x, self.params.gps_lever_m)
+        else:
+            h, hj = models.position_measurement(self.x[:3], self.params.gps_lever_m)
+            hj = np.hstack([hj, np.zeros((2, self.x.size - 3))])
         nu = np.asarray(z, float) - h
         return self._update(kind, nu, hj, np.asarray(r, float))
 
     def update_heading(self, theta: float, var: float) -> UpdateResult:
         """Absolute heading measurement (rad, variance rad^2), gated."""
-        h, hj = models.heading_measurement(self.x)
+        h, hj = models.heading_measurement(self.x[:3])
+        hj = np.hstack([hj, np.zeros((1, self.x.size - 3))])
         nu = np.array([wrap_angle(theta - h[0])])
         return self._update("heading", nu, hj, np.array([[var]]))
 
@@ -340,26 +307,15 @@ class PoseEkf:
         if not (np.all(np.isfinite(nu)) and np.all(np.isfinite(r))):
             self._count.bad_input += 1
             return UpdateResult(kind, False, math.nan, dof)
-        ph = self.P @ hj.T
-        s = hj @ ph + r
-        s_inv = np.linalg.inv(s)
-        nis = float(nu @ s_inv @ nu)
+        gate = self._gates.get(dof, self.params.gate(dof))
+        x, pj, nis, accepted, repaired = joseph_update(self.x, self.P, nu, hj, r, gate)
         self.last_nis[kind] = nis
-        if nis > self._gates.get(dof, self.params.gate(dof)):
+        if not accepted:
             self._bump(f"{kind}_rejected")
             return UpdateResult(kind, False, nis, dof)
-        k = ph @ s_inv
-        self.x = self.x + k @ nu
-        self.x[2] = wrap_angle(self.x[2])
-        ikh = np.eye(3) - k @ hj
-        pj = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form
-        pj = 0.5 * (pj + pj.T)
-        if not _is_pd(pj):
-            w, v = np.linalg.eigh(pj)
-            pj = (v * np.maximum(w, 1e-12)) @ v.T
-            pj = 0.5 * (pj + pj.T)
-            self._count.covariance_repairs += 1
-        self.P = pj
+        x[2] = wrap_angle(x[2])
+        self.x, self.P = x, pj
+        self._count.covariance_repairs += int(repaired)
         self._bump(f"{kind}_updates")
         return UpdateResult(kind, True, nis, dof)
 
@@ -386,32 +342,60 @@ class PoseEkf:
         self._gyro.feed(msg)
 
     def feed_odometry(self, msg: RobotOdometry) -> PoseEstimate | None:
-        """Predict over the motion since the previous odometry (fusing the gyro's step)."""
+        """Predict over the motion since the previous odometry (fusing the gyro's step).
+
+        The gyro's change is fused only over an interval it has caught up with
+        (fusion.alignment); steps it lags behind are predicted on the encoders and
+        corrected when it catches up (:meth:`_merge`).
+        """
         self._count.odometry += 1
         step = self._odo.feed(msg)
-        gyro = self._gyro.take()
+        p = self.params
         if step is None:
-            if self._odo.last is msg:  # first message or re-baseline after a jump
+            if self._odo.baselined:  # first message or re-baseline after a jump
+                d = self._align.close()
+                lost = self._align.baseline()
+                if d is not None and lost is not None:
+                    self._merge(d, lost)
+                elif lost is not None:  # odometry jumped: the gyro alone turns the heading
+                    dg = lost.angle_rad - self._bias.bias_radps * lost.covered_s
+                    self.x[2] = wrap_angle(self.x[2] + dg)
+                    self.P[2, 2] += self._gyro_var(dg, lost.covered_s)
                 self.stamp_ns = max(self.stamp_ns, msg.stamp_ns)
                 return self.estimate()
             return None
-        p = self.params
+        decision, gyro = self._align.decide(step)
         if p.learn_bias_at_rest:
-            self._bias.observe(step, gyro)
-        last_g = self._gyro.last_stamp_ns
-        stale = gyro is None or last_g is None or (step.t1_ns - last_g) * NS > p.gyro_timeout_s
+            self._bias.observe(step, gyro if decision == "fuse" else None)
+        stale = self._align.silent_s > p.gyro_timeout_s
         if stale and not self.gyro_stale:
             self._count.gyro_timeouts += 1
         self.gyro_stale = stale
-        dg = rg = None
-        if not stale and gyro is not None:
-            if gyro.covered_s > 1.5 * step.dt_s + 0.05:
-                self._count.gyro_misaligned += 1
-            else:
-                dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
-                rg = self._gyro_var(dg, gyro.covered_s)
+        if decision == "timeout":
+            self._count.gyro_misaligned += 1
         dl, dr = models.step_to_wheels(step.ds_m, step.dtheta_rad, p.wheelbase_m)
-        self.predict(float(dl), float(dr), dg, rg)
+        qu = models.step_covariance(
+            float(dl), float(dr), p.wheelbase_m, p.wheel_noise_m_per_sqrt_m,
+            p.wheel_noise_floor_m, p.turn_noise_fraction,
+        )  # fmt: skip
+        var_enc, x0, y0 = float(qu[1, 1]), float(self.x[0]), float(self.x[1])
+        if decision == "fuse" and gyro is not None:
+            dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
+            rg = self._gyro_var(dg, gyro.covered_s)
+            nu = dg - step.dtheta_rad
+            if not step.at_rest and nu * nu / (var_enc + rg) > self._gates[1]:
+                self._align.postpone(step, gyro, var_enc, x0, y0)
+                self.predict(float(dl), float(dr), dt_s=step.dt_s)
+            else:
+                self.predict(float(dl), float(dr), dg, rg, dt_s=step.dt_s)
+        else:
+            if decision in ("deferred", "merged"):
+                self._align.defer(step, var_enc, x0, y0)
+            self.predict(float(dl), float(dr), dt_s=step.dt_s)
+            if decision == "merged":
+                d = self._align.close()
+                if d is not None and gyro is not None:
+                    self._merge(d, gyro)
         self.stamp_ns = step.t1_ns
         self._speed_mps = abs(step.ds_m) / step.dt_s if step.dt_s > 0 else 0.0
         gps_stale = self._last_gps_ns is None or (
@@ -422,23 +406,44 @@ class PoseEkf:
         self.gps_stale = gps_stale
         return self.estimate()
 
+    def _merge(self, d: Deferred, gyro: GyroDelta) -> None:
+        """The gyro's change over a deferred interval, fused retroactively.
+
+        The deferred steps were predicted on the encoders (heading moved by their sum E,
+        dtheta variance sum Sw). The gyro's change G is a measurement of the same sum:
+        innovation G - E, S = Sw + Rg, gated like a single step (beyond the gate the
+        encoders are the outlier: K = 1). The heading moves by K (G - E), P_theta loses
+        K Sw, and the position driven meanwhile is rotated about its start by half the
+        correction. Approximate (the cross-covariances are kept): used only after stalls.
+        """
+        dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
+        rg = self._gyro_var(dg, gyro.covered_s)
+        nu = dg - d.dtheta_enc
+        s = d.var_enc + rg
+        nis = nu * nu / s
+        self.last_nis["gyro"] = nis
+        if nis <= self._gates[1] or not d.moving:
+            k = d.var_enc / s
+            self._count.gyro_fused += 1
+        else:
+            k = 1.0
+            self._count.odometry_heading_rejected += 1
+        delta = k * nu
+        c, sn = math.cos(0.5 * delta), math.sin(0.5 * delta)
+        ex, ey = self.x[0] - d.x0, self.x[1] - d.y0
+        self.x[0], self.x[1] = d.x0 + c * ex - sn * ey, d.y0 + sn * ex + c * ey
+        self.x[2] = wrap_angle(self.x[2] + delta)
+        pt = self.P.copy()
+        pt[2, 2] = max(pt[2, 2] - k * d.var_enc + (rg if k == 1.0 else 0.0), 1e-12)
+        if not is_pd(pt):
+            pt = repair_pd(pt)
+            self._count.covariance_repairs += 1
+        self.P = 0.5 * (pt + pt.T)
+        self._count.gyro_merges += 1
+
     def gps_measurement(self, msg: GpsFix) -> tuple[np.ndarray, np.ndarray] | None:
         """(z, R) of a fix in local metres, or None when it has no usable position."""
-        if msg.mode < 2 or msg.quality == 0 or msg.east_m is None or msg.north_m is None:
-            return None
-        p = self.params
-        if msg.std_lat_m is not None and msg.std_lon_m is not None:
-            se, sn = msg.std_lon_m, msg.std_lat_m
-        elif msg.hdop is not None:
-            se = sn = msg.hdop * p.gps_uere_m / math.sqrt(2.0)
-        else:
-            return None
-        se, sn = max(se, p.gps_min_sigma_m), max(sn, p.gps_min_sigma_m)
-        z = np.array([msg.east_m, msg.north_m], dtype=float)
-        r = np.diag([se * se, sn * sn])
-        if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
-            return None
-        return z, r
+        return gps_fix_measurement(msg, self.params)
 
     def feed_gps(self, msg: GpsFix) -> PoseEstimate | None:
         """Update on a fix; None if it was skipped (no fix, out of order, gated out)."""
@@ -459,10 +464,15 @@ class PoseEkf:
         z, r = meas
         if not self._pose_set and p.init_from_gps:
             lever = models.position_measurement(np.array([0.0, 0.0, self.x[2]]), p.gps_lever_m)[0]
-            self.x[:2] = z - lever
+            self.x[:2] = z - lever - (self.x[3:5] if p.gps_bias_states else 0.0)
             self.P[:2, :] = 0.0
             self.P[:, :2] = 0.0
             self.P[:2, :2] = r
+            if p.gps_bias_states:  # position error = -(bias error) - white noise
+                pb = self.P[3:5, 3:5]
+                self.P[:2, :2] = r + pb
+                self.P[:2, 3:5] = -pb
+                self.P[3:5, :2] = -pb
             self._pose_set = True
             self._count.gps_init += 1
             return self.estimate()
@@ -507,17 +517,11 @@ class PoseEkf:
                 "odometry_jumps": self._odo.jumps,
                 "out_of_order_gyro": self._gyro.out_of_order,
                 "gyro_discontinuities": self._gyro.discontinuities,
+                "gyro_postponed": self._align.postponed,
+                "gyro_deferred_steps": self._align.deferrals,
                 "gyro_stale": self.gyro_stale,
                 "gps_stale": self.gps_stale,
                 "gyro_bias_radps": self._bias.bias_radps,
             }
         )
         return out
-
-
-def _is_pd(m: np.ndarray) -> bool:
-    try:
-        np.linalg.cholesky(m)
-    except np.linalg.LinAlgError:
-        return False
-    return True

@@ -252,13 +252,29 @@ def test_fused_heading_beats_encoder_on_the_fakes_models():
     assert fused.variance > enc.params.initial_sigma_rad**2  # grows, never collapses
 
 
-def test_gyro_delta_spanning_a_gap_before_the_step_is_not_used():
+def test_gyro_delta_spanning_a_gap_is_fused_over_the_whole_deferred_interval():
     f = HeadingFilter(HeadingParams(gyro_timeout_s=0.5))
     f.feed(gyro(0, 0.0))
     f.feed(odo(0, 0, 0, 0))
-    f.feed(odo(900, 0.3, 0, 0.0))  # gyro silent: encoder only
+    est = f.feed(odo(900, 0.3, 0, 0.0))  # gyro silent: encoder only, deferred
+    assert est.theta_rad == 0.0 and f.gyro_stale
     f.feed(gyro(1000, 0.5))  # 0.5 rad over the whole second, not over the last 0.1 s
     est = f.feed(odo(1000, 0.34, 0, 0.0))
     c = f.counters()
-    assert c["gyro_misaligned"] == 1 and c["steps_fused"] == 0
+    assert c["gyro_merges"] == 1 and c["steps_fused"] == 2 and c["steps_encoder_only"] == 0
+    # 0.5 rad against the encoders' 0 is far beyond the gate: the encoders are the outlier
+    assert c["odometry_heading_rejected"] == 1
+    assert est.theta_rad == pytest.approx(0.5, rel=1e-9)
+
+
+def test_gyro_silent_beyond_max_defer_is_given_up_and_counted():
+    f = HeadingFilter(HeadingParams(gyro_timeout_s=0.5, gyro_max_defer_s=1.0))
+    f.feed(gyro(0, 0.0))
+    f.feed(odo(0, 0, 0, 0))
+    for i in range(1, 13):
+        f.feed(odo(i * 100, 0.03 * i, 0, 0.0))
+    f.feed(gyro(1300, 0.5))  # chain broken: re-baselined here, not fused
+    est = f.feed(odo(1300, 0.39, 0, 0.0))
+    c = f.counters()
+    assert c["gyro_misaligned"] == 1 and c["gyro_merges"] == 0 and c["steps_fused"] == 0
     assert est.theta_rad == 0.0

@@ -9,6 +9,7 @@ import pytest
 from scipy.stats import chi2
 
 from fusion import models
+from fusion.ekf_update import is_pd
 from fusion.pose_ekf import PoseEkf, PoseEkfParams
 from msgs import GpsFix, GyroSample, Pose2D, RobotOdometry, wrap_angle
 
@@ -81,9 +82,55 @@ def test_wheel_and_measurement_jacobians_match_finite_differences():
         )
 
 
-def _simulate_consistency(runs: int, steps: int, seed: int):
-    """Runs drawn from the EKF's own noise models; NEES per step and NIS per update."""
-    p = PoseEkfParams(gate_probability=None, wheel_noise_m_per_sqrt_m=0.01)
+def test_gps_bias_model_jacobians_match_finite_differences():
+    rng = np.random.default_rng(13)
+    p = PoseEkfParams(gps_bias_sigma_m=1.5, gps_bias_tau_s=60.0)
+    for _ in range(30):
+        x = np.concatenate([rng.uniform(-5, 5, 2), rng.uniform(-3.1, 3.1, 1), rng.normal(0, 2, 2)])
+        lever = (rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3))
+        _, hj = models.biased_position_measurement(x, lever)
+        num = numeric_jacobian(lambda s, lv=lever: models.biased_position_measurement(s, lv)[0], x)
+        np.testing.assert_allclose(hj, num, atol=1e-7)
+        dt = rng.uniform(0.01, 2.0)
+        _, a, q = models.gauss_markov(x[3:], dt, p.gps_bias_tau_s, p.gps_bias_sigma_m)
+        num = numeric_jacobian(
+            lambda b, d=dt: models.gauss_markov(b, d, p.gps_bias_tau_s, p.gps_bias_sigma_m)[0],
+            x[3:],
+        )
+        np.testing.assert_allclose(a * np.eye(2), num, atol=1e-8)
+        # stationary: a^2 sigma^2 + q = sigma^2
+        assert a * a * p.gps_bias_sigma_m**2 + q == pytest.approx(p.gps_bias_sigma_m**2)
+        # the EKF's augmented prediction: F of the 5-state propagation vs finite differences
+        ekf = PoseEkf(p, initial=Pose2D())
+        u = rng.uniform(-0.1, 0.1, size=2)
+
+        def prop(s, u=u, d=dt, ekf=ekf):
+            ekf.x = np.array(s, float)
+            ekf.P = np.eye(5)
+            ekf.predict(float(u[0]), float(u[1]), dt_s=d)
+            return ekf.x.copy()
+
+        fx = numeric_jacobian(prop, x)
+        ekf.x, ekf.P = x.copy(), np.zeros((5, 5))
+        ekf.predict(float(u[0]), float(u[1]), dt_s=dt)
+        # with P = 0 the predicted P is G Q G^T + Qb; with P = I it adds F F^T
+        ekf2 = PoseEkf(p, initial=Pose2D())
+        ekf2.x, ekf2.P = x.copy(), np.eye(5)
+        ekf2.predict(float(u[0]), float(u[1]), dt_s=dt)
+        np.testing.assert_allclose(ekf2.P - ekf.P, fx @ fx.T, atol=1e-6)
+
+
+def _simulate_consistency(runs: int, steps: int, seed: int, bias: bool = False):
+    """Runs drawn from the EKF's own noise models; NEES of the pose per step and NIS per
+    update. ``bias``: the GPS error is a Gauss-Markov bias (the filter's bias states'
+    model, 1 m, tau 20 s) plus the white noise R; else white only (3-state filter)."""
+    p = PoseEkfParams(
+        gate_probability=None,
+        wheel_noise_m_per_sqrt_m=0.01,
+        gps_bias_states=bias,
+        gps_bias_sigma_m=1.0,
+        gps_bias_tau_s=20.0,
+    )
     rng = np.random.default_rng(seed)
     nees = np.empty((runs, steps))
     nis_gps, nis_gyro = [], []
@@ -91,6 +138,7 @@ def _simulate_consistency(runs: int, steps: int, seed: int):
     for m in range(runs):
         p0 = np.diag([p.initial_sigma_xy_m**2] * 2 + [p.initial_sigma_theta_rad**2])
         truth = rng.multivariate_normal(np.zeros(3), p0)
+        b = rng.normal(0.0, p.gps_bias_sigma_m, size=2) if bias else np.zeros(2)
         ekf = PoseEkf(p, initial=Pose2D(0.0, 0.0, 0.0))
         row_gps, row_gyro = [], []
         for k in range(steps):
@@ -107,22 +155,26 @@ def _simulate_consistency(runs: int, steps: int, seed: int):
             truth = models.motion(truth, u_t, p.heading_point)
             rg = (0.02 * u_t[1]) ** 2 + 1e-6
             dg = u_t[1] + rng.normal(0.0, math.sqrt(rg))
-            res = ekf.predict(dl, dr, dg, rg)
+            res = ekf.predict(dl, dr, dg, rg, dt_s=0.1)
             row_gyro.append(res.nis)
+            if bias:
+                b, _, qb = models.gauss_markov(b, 0.1, p.gps_bias_tau_s, p.gps_bias_sigma_m)
+                b = b + rng.normal(0.0, math.sqrt(qb), size=2)
             if k % 10 == 9:
-                z = truth[:2] + rng.multivariate_normal(np.zeros(2), r_gps)
+                z = truth[:2] + b + rng.multivariate_normal(np.zeros(2), r_gps)
                 row_gps.append(ekf.update_position(z, r_gps).nis)
-            e = ekf.x - truth
+            e = ekf.x[:3] - truth
             e[2] = wrap_angle(e[2])
-            nees[m, k] = e @ np.linalg.solve(ekf.P, e)
+            nees[m, k] = e @ np.linalg.solve(ekf.P[:3, :3], e)
         nis_gps.append(row_gps)
         nis_gyro.append(row_gyro)
     return nees, np.array(nis_gps), np.array(nis_gyro)
 
 
-def test_nees_and_nis_inside_95_chi_square_bands_over_seeded_runs():
+@pytest.mark.parametrize("bias", [False, True], ids=["white_gps", "gauss_markov_gps_bias"])
+def test_nees_and_nis_inside_95_chi_square_bands_over_seeded_runs(bias):
     runs, steps = 50, 200
-    nees, nis_gps, nis_gyro = _simulate_consistency(runs, steps, seed=21)
+    nees, nis_gps, nis_gyro = _simulate_consistency(runs, steps, seed=21, bias=bias)
 
     def check(samples: np.ndarray, dof: int) -> None:
         lo = chi2.ppf(0.025, runs * dof) / runs
@@ -137,7 +189,7 @@ def test_nees_and_nis_inside_95_chi_square_bands_over_seeded_runs():
 
 
 def test_gating_rejects_an_outlier_and_counts_it():
-    ekf = PoseEkf(initial=Pose2D(0.0, 0.0, 0.0))
+    ekf = PoseEkf(PoseEkfParams(gps_bias_states=False), initial=Pose2D(0.0, 0.0, 0.0))
     ekf.feed(odo(0, 0, 0, 0))
     for i in range(1, 11):
         ekf.feed(odo(i * 100, 0.04 * i, 0, 0))
@@ -151,7 +203,7 @@ def test_gating_rejects_an_outlier_and_counts_it():
     c = ekf.counters()
     assert c["gps_updates"] == 1 and c["gps_rejected"] == 1
     # Without gating the same outlier is taken and drags the estimate towards it.
-    free = PoseEkf(PoseEkfParams(gate_probability=None), initial=Pose2D())
+    free = PoseEkf(PoseEkfParams(gate_probability=None, gps_bias_states=False), initial=Pose2D())
     free.set_pose(Pose2D(), covariance=np.diag([1.0, 1.0, 1e-4]))
     free.feed(odo(0, 0, 0, 0))
     free.feed(odo(100, 0.04, 0, 0))
@@ -159,12 +211,13 @@ def test_gating_rejects_an_outlier_and_counts_it():
     assert free.x[0] > 10.0 and free.counters()["gps_updates"] == 1
 
 
-def test_gyro_step_disagreeing_wildly_is_gated_and_counted():
+def test_encoder_turn_contradicted_by_the_gyro_is_gated_and_the_gyro_kept():
     ekf = PoseEkf(initial=Pose2D())
     res = ekf.predict(0.05, 0.05, dtheta_gyro=0.5, gyro_var=1e-6)
     assert res is not None and not res.accepted and res.nis > chi2.ppf(0.99, 1)
-    assert ekf.counters()["gyro_rejected"] == 1
-    assert ekf.x[2] == pytest.approx(0.0)
+    assert ekf.counters()["odometry_heading_rejected"] == 1
+    assert ekf.x[2] == pytest.approx(0.5)
+    assert ekf.P[2, 2] == pytest.approx(1e-6 + ekf.params.initial_sigma_theta_rad**2)
 
 
 def test_out_of_order_measurements_are_rejected_and_counted():
@@ -184,7 +237,10 @@ def test_out_of_order_measurements_are_rejected_and_counted():
 
 
 def test_gps_covariance_from_gst_else_hdop_and_no_fix_skipped():
-    p = PoseEkfParams(gps_uere_m=4.0)
+    biased = PoseEkf(PoseEkfParams(gps_white_fraction=0.3), initial=Pose2D())
+    _, r = biased.gps_measurement(fix(0, 1.0, 2.0, std=0.7))  # bias states: the white part
+    np.testing.assert_allclose(r, np.diag([0.21**2, 0.21**2]))
+    p = PoseEkfParams(gps_uere_m=4.0, gps_bias_states=False)
     ekf = PoseEkf(p, initial=Pose2D())
     z, r = ekf.gps_measurement(fix(0, 1.0, 2.0, std=0.7))
     np.testing.assert_allclose(r, np.diag([0.49, 0.49]))
@@ -235,12 +291,17 @@ def test_reset_and_set_pose():
     assert ekf.counters()["resets"] == 1
 
 
-def test_first_gps_fix_initialises_position_when_no_pose_was_given():
-    ekf = PoseEkf()
+@pytest.mark.parametrize("bias", [False, True])
+def test_first_gps_fix_initialises_position_when_no_pose_was_given(bias):
+    p = PoseEkfParams(gps_bias_states=bias)
+    ekf = PoseEkf(p)
     ekf.feed(odo(0, 0, 0, 0))
     est = ekf.feed(fix(0, 1234.0, -567.0, std=2.0))
     assert (est.pose.x, est.pose.y) == (1234.0, -567.0)
-    assert est.covariance[0] == pytest.approx(4.0)
+    # with bias states: the white part (fraction of the claimed sigma) plus the bias prior
+    want = (0.3 * 2.0) ** 2 + p.gps_bias_sigma_m**2 if bias else 4.0
+    assert est.covariance[0] == pytest.approx(want)
+    assert is_pd(ekf.P)
     assert ekf.counters()["gps_init"] == 1
     assert ekf.feed(fix(1000, 1235.0, -567.0, std=2.0)) is not None  # then ordinary updates
 
@@ -319,7 +380,9 @@ def test_message_level_drive_with_gyro_and_gps_tracks_a_square():
 
 def test_gps_error_correlation_inflates_r_by_tau_over_gap():
     def run(tau: float) -> PoseEkf:
-        ekf = PoseEkf(PoseEkfParams(gps_error_correlation_s=tau), initial=Pose2D())
+        ekf = PoseEkf(
+            PoseEkfParams(gps_error_correlation_s=tau, gps_bias_states=False), initial=Pose2D()
+        )
         ekf.set_pose(Pose2D(), covariance=np.diag([100.0, 100.0, 1e-4]))
         ekf.feed(odo(0, 0, 0, 0))
         ekf.feed(fix(0, 1.0, 1.0, std=1.0))  # first fix: R as claimed
