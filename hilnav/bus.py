@@ -36,12 +36,16 @@ from msgs import (
     GyroSample,
     HeadingEstimate,
     IrScan,
+    LandmarkMap,
+    LandmarkScan,
     OccupancyGridMsg,
     PoseBox,
     PoseEstimate,
     RawBytes,
+    RelativeMeasurement,
     RobotInfo,
     RobotOdometry,
+    VehicleControl,
     VelocityCommand,
 )
 
@@ -62,6 +66,10 @@ TOPIC_TYPES: dict[str, type] = {
     "truth": GroundTruth,
     "info": RobotInfo,
     "association": AssociationReport,
+    "relative": RelativeMeasurement,
+    "control": VehicleControl,
+    "landmark_scan": LandmarkScan,
+    "landmarks": LandmarkMap,
 }
 
 # What the queryables hilnav/<robot>/query/<name> answer with.

@@ -222,7 +222,8 @@ class LocalizationAdapter:
             wheel_abs_bound_m=lc.wheel_abs_bound_m,
             wheel_rel_bound=lc.wheel_rel_bound,
             gps_bound_m=lc.gps_bound_m,
-            gyro_bound_rad=math.radians(lc.gyro_bound_deg),
+            # the gyro heading is yaw0 + its turn since start: yaw0's own bound adds in
+            gyro_bound_rad=math.radians(lc.gyro_bound_deg + lc.initial_bound_deg),
             gyro_drift_bound_radps=math.radians(lc.gyro_drift_bound_degps),
             gyro_offset_rad=0.0,
             window=lc.window,
