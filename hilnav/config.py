@@ -24,6 +24,7 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from drivers.irboard import IrBoardConfig
 from hilnav.bus import ZenohSettings, check_name
 
 DEG = math.pi / 180.0
@@ -532,3 +533,16 @@ def summary(cfg: RobotConfig) -> str:
     lines.append(f"  fleet: {', '.join(cfg.fleet) or '(only itself)'}")
     lines.append(f"  log: {cfg.log.dir if cfg.log.enabled else 'off'}")
     return "\n".join(lines)
+
+
+def ir_board_config(cfg: RobotConfig) -> IrBoardConfig:
+    """The IR ADC board settings of a robot config, as the IR driver and codecs take them."""
+    ir = cfg.devices.ir
+    return IrBoardConfig(
+        board_id=ir.board_id,
+        adc_bits=ir.adc_bits,
+        vref_v=ir.vref_v,
+        rate_hz=ir.rate_hz,
+        mounts=cfg.geometry.ir_mounts_rad(),
+        median_window=ir.median_window,
+    )

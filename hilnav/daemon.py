@@ -44,7 +44,7 @@ from typing import Any
 
 import msgs
 from hilnav.bus import Bus, ZenohSettings
-from hilnav.config import RobotConfig
+from hilnav.config import RobotConfig, ir_board_config
 from hilnav.pipeline import Pipeline
 from msgs import (
     DeviceDiagnostics,
@@ -166,7 +166,6 @@ def make_drivers(cfg: RobotConfig, on_raw) -> dict[str, Any]:  # noqa: ANN001
     """One driver per enabled device; ``on_raw(device)`` gives each its raw-bytes hook."""
     from drivers.arcos.driver import ArcosDriver, ArcosOptions
     from drivers.cruzcore_driver import CruzCoreDriver
-    from drivers.irboard import IrBoardConfig
     from drivers.irboard.driver import IrCanDriver, IrSerialDriver
     from drivers.nmea.driver import NmeaDriver
     from drivers.nmea.local import Datum
@@ -179,14 +178,7 @@ def make_drivers(cfg: RobotConfig, on_raw) -> dict[str, Any]:  # noqa: ANN001
         )
     if d.ir.enabled:
         ir = d.ir
-        board = IrBoardConfig(
-            board_id=ir.board_id,
-            adc_bits=ir.adc_bits,
-            vref_v=ir.vref_v,
-            rate_hz=ir.rate_hz,
-            mounts=cfg.geometry.ir_mounts_rad(),
-            median_window=ir.median_window,
-        )
+        board = ir_board_config(cfg)
         if ir.link == "can":
             out["ir"] = IrCanDriver(
                 ir.can_interface,

@@ -135,21 +135,14 @@ class RawDecoders:
     def __init__(self, config: Any) -> None:
         from drivers.arcos.codec import ArcosCodec
         from drivers.cruzcore import CruzCoreCodec
-        from drivers.irboard import IrBoardConfig
         from drivers.irboard.codec import IrCanCodec, IrSerialCodec
         from drivers.nmea.codec import NmeaCodec
         from drivers.nmea.local import Datum
+        from hilnav.config import ir_board_config
 
         d = config.devices
         ir = d.ir
-        board = IrBoardConfig(
-            board_id=ir.board_id,
-            adc_bits=ir.adc_bits,
-            vref_v=ir.vref_v,
-            rate_hz=ir.rate_hz,
-            mounts=config.geometry.ir_mounts_rad(),
-            median_window=ir.median_window,
-        )
+        board = ir_board_config(config)
         self.ir_can = ir.link == "can"
         self.codecs: dict[str, Any] = {
             "arcos": ArcosCodec(),
