@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -41,3 +42,18 @@ def shared_dir() -> Path:
     if not SHARED.is_dir():
         pytest.skip(f"shared folder not found at {SHARED}")
     return SHARED
+
+
+def pump(driver, seconds: float, v: float | None = None, w: float = 0.0):  # noqa: ANN001, ANN201
+    """Read a driver for ``seconds`` (driving at v, w if given); the last odometry seen."""
+    from msgs import RobotOdometry
+
+    last = None
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if v is not None:
+            driver.set_velocity(v, w)
+        for m in driver.read(0.05):
+            if isinstance(m, RobotOdometry):
+                last = m
+    return last

@@ -18,6 +18,7 @@ import threading
 import time
 
 import pytest
+from conftest import pump
 
 from drivers.arcos.commands import encode_command
 from drivers.arcos.driver import ArcosDriver, ArcosOptions
@@ -26,7 +27,7 @@ from fakes.pioneer import PioneerConfig, PioneerEmulator
 from fakes.pty import VirtualSerialPort
 from fakes.runner import FakeRunner
 from fakes.world import World
-from msgs import Pose2D, RobotOdometry
+from msgs import Pose2D
 
 ANGLE_CONV = 0.001534  # p3dx-sh AngleConvFactor, rad per unit
 
@@ -205,28 +206,16 @@ def test_aria_closes_a_robot_left_open_and_reconnects(fake):
     second.close()
 
 
-def _pump(driver, seconds, v=None, w=0.0):
-    last = None
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        if v is not None:
-            driver.set_velocity(v, w)
-        for m in driver.read(0.05):
-            if isinstance(m, RobotOdometry):
-                last = m
-    return last
-
-
 def test_drive_a_square_and_match_the_truth(fake):
     runner, _ = fake
     d = ArcosDriver(runner.ports()["arcos"])
     d.open()
     d.send(encode_command(5, 1000) + encode_command(5, -1000) + encode_command(23, 300))
-    state = {"odo": _pump(d, 0.5), "turned": 0.0, "driven": 0.0}
+    state = {"odo": pump(d, 0.5), "turned": 0.0, "driven": 0.0}
 
     def step(v, w):
         prev = state["odo"].pose
-        state["odo"] = _pump(d, 0.1, v=v, w=w) or state["odo"]
+        state["odo"] = pump(d, 0.1, v=v, w=w) or state["odo"]
         pose = state["odo"].pose
         state["turned"] += abs(math.remainder(pose.theta - prev.theta, 2 * math.pi))
         state["driven"] += math.hypot(pose.x - prev.x, pose.y - prev.y)
@@ -245,7 +234,7 @@ def test_drive_a_square_and_match_the_truth(fake):
             if abs(err) < math.radians(3):
                 break
             pose = step(0.0, max(-1.5, min(1.5, 3.0 * err)))
-    last = _pump(d, 0.8, v=0.0, w=0.0) or state["odo"]
+    last = pump(d, 0.8, v=0.0, w=0.0) or state["odo"]
     truth = runner.world.robots["r1"].pose
     d.close()
     # Four sides and four quarter turns were driven (the control loop's timing aside)...
@@ -260,19 +249,19 @@ def test_stop_estop_enable_and_seto(fake):
     runner, emu = fake
     d = ArcosDriver(runner.ports()["arcos"])
     d.open()
-    assert _pump(d, 1.0, v=0.3).moving
+    assert pump(d, 1.0, v=0.3).moving
     d.estop()
-    m = _pump(d, 0.5)
+    m = pump(d, 0.5)
     assert m.estop and runner.world.robots["r1"].left_cmd_mps == 0.0
     d.enable_motors(True)
-    assert not _pump(d, 0.3).estop
-    assert _pump(d, 1.0, v=0.3).linear_vel_mps > 0.1
+    assert not pump(d, 0.3).estop
+    assert pump(d, 1.0, v=0.3).linear_vel_mps > 0.1
     d.stop()
-    m = _pump(d, 0.5)
+    m = pump(d, 0.5)
     assert m.linear_vel_mps == 0.0 and not m.moving
     assert abs(m.pose.x) > 0.1
     d.reset_odometry()
-    m = _pump(d, 0.5)
+    m = pump(d, 0.5)
     assert math.hypot(m.pose.x, m.pose.y) < 1e-3 and m.raw["XPOS"] == 0
     d.close()
 
@@ -281,20 +270,20 @@ def test_reconnect_after_the_robot_goes_silent(fake):
     runner, emu = fake
     d = ArcosDriver(runner.ports()["arcos"], ArcosOptions(reconnect_initial_s=0.1, sync_attempts=1))
     d.open()
-    _pump(d, 0.3)
+    pump(d, 0.3)
     emu.go_silent()
     end = time.monotonic() + 4.0
     while d.connected and time.monotonic() < end:
         d.read(0.05)
     assert not d.connected and "silent for 2.0 s" in d.last_error
-    _pump(d, 1.0)  # reconnect attempts fail while the controller is hung
+    pump(d, 1.0)  # reconnect attempts fail while the controller is hung
     assert not d.connected and d.reconnects == 0
     emu.recover()
     end = time.monotonic() + 10
     while time.monotonic() < end and not d.connected:
-        _pump(d, 0.2)
+        pump(d, 0.2)
     assert d.connected and d.reconnects == 1 and emu.sessions == 2
-    assert _pump(d, 0.5) is not None
+    assert pump(d, 0.5) is not None
     d.close()
 
 
@@ -302,11 +291,11 @@ def test_controller_reset_packet_triggers_a_reconnect(fake):
     runner, emu = fake
     d = ArcosDriver(runner.ports()["arcos"], ArcosOptions(reconnect_initial_s=0.1))
     d.open()
-    _pump(d, 0.3)
+    pump(d, 0.3)
     emu.controller_reset()
     end = time.monotonic() + 6
     while time.monotonic() < end and emu.sessions < 2:
-        _pump(d, 0.2)
+        pump(d, 0.2)
     assert d.connected and d.reconnects == 1 and emu.sessions == 2
     assert "0xFF" in d.last_error
     d.close()
@@ -346,7 +335,7 @@ def test_driver_over_tcp_like_mobilesim(fake):
         d = ArcosDriver(f"tcp://127.0.0.1:{port}")
         info = d.open()
         assert info.name == "aria-twin"
-        last = _pump(d, 1.5, v=0.2)
+        last = pump(d, 1.5, v=0.2)
         d.close()
         assert last is not None and last.linear_vel_mps > 0.05
     finally:

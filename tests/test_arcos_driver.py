@@ -7,7 +7,7 @@ import subprocess
 import time
 
 import pytest
-from conftest import HILNAV, hilnav_env
+from conftest import HILNAV, hilnav_env, pump
 
 from drivers.arcos.commands import Cmd, encode_command
 from drivers.arcos.driver import ArcosDriver, ArcosOptions
@@ -27,18 +27,6 @@ def fake():
     runner.start()
     yield runner, emu
     runner.stop()
-
-
-def pump(driver, seconds, v=None, w=0.0):
-    last = None
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        if v is not None:
-            driver.set_velocity(v, w)
-        for m in driver.read(0.05):
-            if isinstance(m, RobotOdometry):
-                last = m
-    return last
 
 
 def test_handshake_info_and_sips(fake):
