@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 from pathlib import Path
@@ -16,14 +15,6 @@ from tests.conftest import HILNAV, ROOT, hilnav_env
 DURATION_S = 30.0
 
 
-def _need_loader() -> None:
-    if (
-        importlib.util.find_spec("mapping.slam") is None
-        or importlib.util.find_spec("mapping.slam.victoria_park") is None
-    ):
-        pytest.skip("the SLAM helper's Victoria Park loader is not merged yet")
-
-
 @pytest.fixture(scope="module")
 def vp_dir() -> Path:
     from tests.conftest import SHARED
@@ -35,7 +26,6 @@ def vp_dir() -> Path:
 
 
 def test_import_first_seconds_matches_the_loader(vp_dir: Path, tmp_path: Path) -> None:
-    _need_loader()
     from mapping.slam.victoria_park import load_victoria_park
     from msgs.landmarks import LandmarkScan, VehicleControl
 
@@ -87,7 +77,6 @@ def test_import_first_seconds_matches_the_loader(vp_dir: Path, tmp_path: Path) -
 
 
 def test_import_of_a_missing_folder_is_a_clear_error(tmp_path: Path) -> None:
-    _need_loader()
     proc = subprocess.run(
         [*HILNAV, "import", "victoria-park", str(tmp_path / "nothing"), str(tmp_path / "o.mcap")],
         capture_output=True, text=True, env=hilnav_env(), cwd=ROOT, timeout=60,
@@ -97,7 +86,6 @@ def test_import_of_a_missing_folder_is_a_clear_error(tmp_path: Path) -> None:
 
 
 def test_replay_runs_ekf_slam_on_it_deterministically(vp_dir: Path, tmp_path: Path) -> None:
-    _need_loader()
     src = tmp_path / "vp.mcap"
     proc = subprocess.run(
         [*HILNAV, "import", "victoria-park", str(vp_dir), str(src), "--duration", str(DURATION_S)],

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import subprocess
@@ -177,8 +176,6 @@ def test_replay_refuses_to_overwrite_its_input(tmp_path: Path) -> None:
 
 
 def test_replay_with_the_daemon_pipeline_is_deterministic(tmp_path: Path) -> None:
-    if importlib.util.find_spec("hilnav.pipeline") is None:
-        pytest.skip("the daemon's pipeline (hilnav/pipeline.py) is not merged yet")
     from tests.logsynth import write_synthetic_log
 
     src = tmp_path / "run.mcap"

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import os
@@ -281,8 +280,6 @@ def test_sigkilled_writer_loses_at_most_about_a_second(tmp_path: Path) -> None:
 
 def test_landmark_map_view_is_a_scene_of_spheres() -> None:
     js = _jsonschema()
-    if importlib.util.find_spec("msgs.landmarks") is None:
-        pytest.skip("msgs.landmarks (SLAM helper) is not merged yet")
     from msgs.landmarks import LandmarkMap
 
     lm = LandmarkMap(T0, (1, 2), (1.0, -3.0), (2.0, 4.0), (0.04, 1.0), (0.0, 0.0), (0.01, 1.0))

@@ -198,6 +198,20 @@ class RawRecord:
     data: bytes
 
 
+def _raw_record(schema: Schema | None, channel: Channel, message: Message) -> RawRecord:
+    return RawRecord(
+        channel.topic,
+        schema.name if schema else "",
+        schema.encoding if schema else "",
+        schema.data if schema else b"",
+        channel.message_encoding,
+        message.log_time,
+        message.publish_time,
+        message.sequence,
+        message.data,
+    )
+
+
 def _has_summary(path: str | Path) -> bool:
     try:
         with open(path, "rb") as f:
@@ -222,17 +236,7 @@ def iter_raw(
             for schema, channel, message in reader.iter_messages(
                 topics=list(wanted) if wanted is not None else None, log_time_order=True
             ):
-                yield RawRecord(
-                    channel.topic,
-                    schema.name if schema else "",
-                    schema.encoding if schema else "",
-                    schema.data if schema else b"",
-                    channel.message_encoding,
-                    message.log_time,
-                    message.publish_time,
-                    message.sequence,
-                    message.data,
-                )
+                yield _raw_record(schema, channel, message)
         return
     res = ScanResult()
     schemas: dict[int, Schema] = {}
@@ -251,17 +255,7 @@ def iter_raw(
             if wanted is not None and ch.topic not in wanted:
                 continue
             sc = schemas.get(ch.schema_id)
-            yield RawRecord(
-                ch.topic,
-                sc.name if sc else "",
-                sc.encoding if sc else "",
-                sc.data if sc else b"",
-                ch.message_encoding,
-                rec.log_time,
-                rec.publish_time,
-                rec.sequence,
-                rec.data,
-            )
+            yield _raw_record(sc, ch, rec)
     if stats is not None:
         stats.truncated = not res.complete
         stats.bad_chunks += res.bad_chunks
