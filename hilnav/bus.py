@@ -1,6 +1,6 @@
 """The Zenoh bus of one robot: publish, subscribe, liveliness and queries, all as msgs.
 
-Keys are ``hilnav/<robot>/<topic>`` (see INTERFACES.md), payloads the JSON of
+Keys are ``hilnav/<robot>/<topic>``, payloads the JSON of
 :func:`msgs.encode` with encoding ``application/json;hilnav.<Class>``; every sample a
 :class:`Bus` publishes carries its own robot name as the Zenoh attachment, so receivers
 know who sent it.
@@ -11,8 +11,9 @@ unless switched on, optionally a native Zenoh JSON5 file as the base, plus Zenoh
 access control, TLS and user/password sections passed through untouched. Those Zenoh
 settings are the real protection; on top, a bus with a ``fleet`` list accepts samples only
 from the robots it names (the key's robot and the sender must both be in the fleet):
-anything else is counted as ``foreign`` and dropped, anything that does not decode is
-counted as ``malformed`` and dropped. Callbacks run on Zenoh's threads; an exception in
+anything else is counted as ``foreign`` and dropped, anything that does not decode (bad
+JSON, wrong types, stamps outside 64 bits, NaN in a command, too large or too deeply
+nested: :func:`msgs.decode`) is counted as ``malformed`` and dropped. Callbacks run on Zenoh's threads; an exception in
 one is counted (``callback_errors``) and never reaches Zenoh.
 """
 
@@ -51,7 +52,7 @@ from msgs import (
 
 PREFIX = "hilnav"
 
-# Message class of every topic (INTERFACES.md); raw/<device> is RawBytes.
+# Message class of every topic; raw/<device> is RawBytes.
 TOPIC_TYPES: dict[str, type] = {
     "odometry": RobotOdometry,
     "gyro": GyroSample,
@@ -249,6 +250,12 @@ class Bus:
         nparts = len(topic.split("/"))
 
         def on_sample(sample: zenoh.Sample) -> None:
+            try:
+                deliver(sample)
+            except Exception as exc:  # noqa: BLE001 - nothing a peer sends may escape
+                self._count("malformed", f"{sample.key_expr}: {exc!r}")
+
+        def deliver(sample: zenoh.Sample) -> None:
             parts = str(sample.key_expr).split("/")
             src = parts[1] if len(parts) == 2 + nparts else ""
             att = sample.attachment

@@ -26,6 +26,7 @@ from typing import Any
 
 from drivers.irboard import IrBoardConfig
 from hilnav.bus import ZenohSettings, check_name
+from hilnav.cmdvel import CmdVelLimits
 
 DEG = math.pi / 180.0
 
@@ -252,11 +253,18 @@ class ZenohTable:
 
 @dataclass(frozen=True)
 class CmdVel:
-    """Velocity commands from the bus: limits and the timeout that stops the robot."""
+    """Velocity commands from the bus: limits, the timeout that stops the robot, and how
+    long the service loop may stall before the robot is stopped."""
 
     timeout_s: float = field(default=0.5, metadata=_positive("0.5"))
+    stall_s: float = field(default=0.5, metadata=_positive("0.5"))
     max_linear_mps: float = field(default=0.75, metadata=_positive("0.75"))
     max_angular_radps: float = field(default=1.5, metadata=_positive("1.5"))
+
+    def limits(self) -> CmdVelLimits:
+        return CmdVelLimits(
+            self.timeout_s, self.stall_s, self.max_linear_mps, self.max_angular_radps
+        )
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,15 @@ and ``queue``: messages dropped because the loop fell behind).
 
 Bus: liveliness token ``hilnav/<robot>/alive``; queryables ``query/pose`` (latest pose),
 ``query/map`` (latest map) and ``query/info``; subscription to ``hilnav/<robot>/cmd_vel``
-(only from fleet members) forwarded to the Pioneer, clamped to ``[cmd_vel]`` limits; if no
-command arrives for ``cmd_vel.timeout_s`` after a moving one, the robot is stopped.
+(only from fleet members) forwarded to the Pioneer through :class:`hilnav.cmdvel.CmdVelGate`
+(finite, clamped to ``[cmd_vel]`` limits). A motion watchdog thread, outside the service
+loop, stops the robot when no command arrives for ``cmd_vel.timeout_s`` after a moving one,
+or when the service loop has not come round for ``cmd_vel.stall_s``.
+
+Fault containment: no single input stops a loop. Inbound samples are validated when
+decoded (msgs.decode); an exception while handling one message (services, log, bus) is
+counted per place in ``DaemonStats.faults``, reported on the ``queue`` diagnostics, printed
+once per kind, and the loop goes on with the next message.
 Poses of other fleet robots (``pose_box``) go to the pipeline for cooperative
 localization.
 
@@ -44,6 +51,7 @@ from typing import Any
 
 import msgs
 from hilnav.bus import Bus, ZenohSettings
+from hilnav.cmdvel import CmdVelGate
 from hilnav.config import RobotConfig, ir_board_config
 from hilnav.pipeline import Pipeline
 from msgs import (
@@ -102,7 +110,9 @@ class DaemonStats:
     cmd_received: int = 0
     cmd_rejected: int = 0
     cmd_timeouts: int = 0
+    cmd_stalls: int = 0
     by_topic: dict[str, int] = field(default_factory=dict)
+    faults: dict[str, int] = field(default_factory=dict)
 
 
 def open_log_writer(path: Path, compression: str, metadata: dict[str, str]) -> Any:
@@ -300,9 +310,8 @@ class Daemon:
         self.log: Any = None
         self.fake: FakeProcess | None = None
         self._cmd_lock = threading.Lock()
-        self._last_cmd: VelocityCommand | None = None
-        self._last_cmd_mono = 0.0
-        self._moving_cmd = False
+        self.gate = CmdVelGate(cfg.cmd_vel.limits())
+        self._fault_kinds: set[tuple[str, str]] = set()
         self._next_diag = 0.0
         self._started = False
         self._stopped = False
@@ -341,6 +350,9 @@ class Daemon:
             self._loop_thread = threading.Thread(target=self._service_loop, name="services")
             self._loop_thread.daemon = True
             self._loop_thread.start()
+            self._watchdog_thread = threading.Thread(target=self._watchdog, name="watchdog")
+            self._watchdog_thread.daemon = True
+            self._watchdog_thread.start()
             if self.pipeline.mapping is not None:
                 self._map_thread = threading.Thread(target=self._mapping_loop, name="mapping")
                 self._map_thread.daemon = True
@@ -393,9 +405,11 @@ class Daemon:
         self._stopped = True
         self._stop.set()
         arcos = self.drivers.get("arcos")
-        if arcos is not None:
-            with contextlib.suppress(Exception):
-                arcos.stop()
+        with self._cmd_lock:
+            self.gate.halt()
+            if arcos is not None:
+                with contextlib.suppress(Exception):
+                    arcos.stop()
         for t in self._threads:
             t.join(timeout=3.0)
         loop = getattr(self, "_loop_thread", None)
@@ -461,35 +475,53 @@ class Daemon:
                     self._put(topic, m)
 
     def _on_cmd_vel(self, robot: str, cmd: VelocityCommand) -> None:
-        lim = self.cfg.cmd_vel
-        self.stats.cmd_received += 1
-        vals = (cmd.linear_mps, cmd.angular_radps, cmd.left_mps or 0.0, cmd.right_mps or 0.0)
-        if not all(map(_finite, vals)):
-            self.stats.cmd_rejected += 1
-            return
-
-        def clamp(v: float, m: float) -> float:
-            return max(-m, min(m, v))
-
-        c = VelocityCommand(
-            cmd.stamp_ns,
-            clamp(cmd.linear_mps, lim.max_linear_mps),
-            clamp(cmd.angular_radps, lim.max_angular_radps),
-            None if cmd.left_mps is None else clamp(cmd.left_mps, lim.max_linear_mps),
-            None if cmd.right_mps is None else clamp(cmd.right_mps, lim.max_linear_mps),
-            cmd.source,
-        )
         arcos = self.drivers.get("arcos")
         with self._cmd_lock:
             if self._stop.is_set():
                 return
-            self._last_cmd = c
-            self._last_cmd_mono = time.monotonic()
-            self._moving_cmd = any(abs(v) > 1e-9 for v in (c.linear_mps, c.angular_radps,
-                                                           c.left_mps or 0.0, c.right_mps or 0.0))  # fmt: skip
+            c = self.gate.accept(cmd, time.monotonic())
+            self.stats.cmd_received, self.stats.cmd_rejected = (
+                self.gate.received,
+                self.gate.rejected,
+            )
+            if c is None:
+                return
             if arcos is not None:
                 arcos.command(c)
         self._put("cmd_vel", c)
+
+    # -- the motion watchdog (its own thread: a stalled or dead service loop still stops) --
+    def _watchdog(self) -> None:
+        period = min(0.05, self.cfg.cmd_vel.timeout_s / 4, self.cfg.cmd_vel.stall_s / 4)
+        while not self._stop.wait(period):
+            try:
+                self._check_motion(time.monotonic())
+            except Exception as exc:  # noqa: BLE001 - the watchdog must outlive any fault
+                self._fault("watchdog", exc)
+
+    def _check_motion(self, now: float) -> None:
+        with self._cmd_lock:
+            reason = self.gate.check(now)
+            if reason is None:
+                return
+            self.stats.cmd_timeouts, self.stats.cmd_stalls = self.gate.timeouts, self.gate.stalls
+            arcos = self.drivers.get("arcos")
+            if arcos is not None:
+                arcos.stop()
+        if reason == "stall":
+            self._fault("services", RuntimeError("service loop stalled: robot stopped"))
+        self._put("cmd_vel", VelocityCommand(time.time_ns(), source=f"{self.robot}/{reason}"))
+
+    def _fault(self, where: str, exc: BaseException) -> None:
+        """Count a fault, keep it for diagnostics, print its first occurrence per kind."""
+        self.stats.faults[where] = self.stats.faults.get(where, 0) + 1
+        text = f"{where}: {exc!r}"
+        self.errors.append(text)
+        del self.errors[:-100]
+        kind = (where, type(exc).__name__)
+        if kind not in self._fault_kinds:
+            self._fault_kinds.add(kind)
+            print(f"hilnav run: {text} (counted; the loop goes on)", file=sys.stderr, flush=True)
 
     def _on_truth(self, robot: str, msg: Any) -> None:
         self._put("truth", msg)
@@ -515,27 +547,41 @@ class Daemon:
             try:
                 outs = mapping.feed(topic, msg)
             except Exception as exc:  # noqa: BLE001 - a mapping bug must not stop the robot
-                self.errors.append(f"mapping: {exc!r}")
+                self._fault("mapping", exc)
                 continue
             for t, m in outs:
                 self.pipeline.latest[t] = m
-                self._emit(t, m, recv_ns, publish=not self._stop.is_set())
+                try:
+                    self._emit(t, m, recv_ns, publish=not self._stop.is_set())
+                except Exception as exc:  # noqa: BLE001
+                    self._fault("mapping", exc)
 
     # -- the service loop --------------------------------------------------------------------------
     def _service_loop(self) -> None:
         self._next_diag = time.monotonic() + self.cfg.diagnostics_period_s
         while not self._stop.is_set():
+            now = time.monotonic()
+            with self._cmd_lock:
+                self.gate.heartbeat(now)
             try:
                 item = self._q.get(timeout=0.05)
             except queue.Empty:
                 item = None
             if item is not None:
-                self._handle(item)
+                self._handle_safely(item)
             now = time.monotonic()
-            self._check_cmd_timeout(now)
             if now >= self._next_diag:
                 self._next_diag = now + self.cfg.diagnostics_period_s
-                self._diagnostics()
+                try:
+                    self._diagnostics()
+                except Exception as exc:  # noqa: BLE001
+                    self._fault("diagnostics", exc)
+
+    def _handle_safely(self, item: _Item, publish: bool = True) -> None:
+        try:
+            self._handle(item, publish)
+        except Exception as exc:  # noqa: BLE001 - one message must never stop the loop
+            self._fault("services", exc)
 
     def _drain(self) -> None:
         while True:
@@ -543,7 +589,7 @@ class Daemon:
                 item = self._q.get_nowait()
             except queue.Empty:
                 return
-            self._handle(item, publish=False)
+            self._handle_safely(item, publish=False)
 
     def _handle(self, item: _Item, publish: bool = True) -> None:
         topic, msg = item.topic, item.msg
@@ -568,7 +614,7 @@ class Daemon:
                 self.bus.publish(topic, msg)
                 self.stats.published += 1
             except Exception as exc:  # noqa: BLE001 - a bus hiccup must not stop the robot
-                self.errors.append(f"publish {topic}: {exc}")
+                self._fault("bus", exc)
         self._log(f"/{self.robot}/{topic}", msg, log_ns)
 
     def _log(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
@@ -578,25 +624,13 @@ class Daemon:
         if self.log is None:
             return
         stamp = getattr(msg, "stamp_ns", None)
-        if not isinstance(stamp, int) or stamp <= 0:
+        if not isinstance(stamp, int) or not 0 < stamp < 2**63:
             stamp = None
         try:
             self.log.write(mcap_topic, msg, log_ns, stamp)
             self.stats.logged += 1
-        except (OSError, ValueError) as exc:
-            self.errors.append(f"log {mcap_topic}: {exc}")
-
-    def _check_cmd_timeout(self, now: float) -> None:
-        with self._cmd_lock:
-            if not self._moving_cmd or now - self._last_cmd_mono < self.cfg.cmd_vel.timeout_s:
-                return
-            self._moving_cmd = False
-            self.stats.cmd_timeouts += 1
-            arcos = self.drivers.get("arcos")
-            if arcos is not None:
-                arcos.stop()
-        stop = VelocityCommand(time.time_ns(), 0.0, 0.0, source=f"{self.robot}/timeout")
-        self._emit("cmd_vel", stop, time.time_ns(), publish=False)
+        except Exception as exc:  # noqa: BLE001 - a message the log refuses is counted
+            self._fault("log", exc)
 
     def _diagnostics(self) -> None:
         stamp = time.time_ns()
@@ -629,11 +663,8 @@ class Daemon:
                 connected=True,
                 frames_ok=self.stats.processed,
                 frames_lost=self.stats.dropped,
+                bad_checksums=sum(self.stats.faults.values()),
                 last_error=self.errors[-1] if self.errors else "",
             ),
             stamp,
         )
-
-
-def _finite(v: float) -> bool:
-    return v == v and abs(v) != float("inf")

@@ -4,7 +4,12 @@ Messages are frozen dataclasses of plain values (int, float, str, bool, bytes, t
 nested message dataclasses, optional fields). ``encode`` turns one into compact UTF-8
 JSON, ``decode`` rebuilds it and checks the types, raising :class:`DecodeError` with the
 offending field named, so a malformed payload from the bus is counted and skipped rather
-than crashing a service. ``json_schema`` derives a JSON Schema from the type hints, for
+than crashing a service. ``decode`` is the boundary check for everything that arrives from
+outside: payloads over ``max_bytes`` or nested deeper than Python can parse are refused,
+integers must fit in 64 bits (MCAP and Zenoh stamps are uint64), ``*_ns`` stamps must lie
+in ``[0, 2**63)``, and a class that sets ``FLOATS = "finite"`` (commands) or
+``FLOATS = "no_nan"`` (pose boxes, whose heading may be unbounded) gets every float of
+it, nested ones included, checked. ``json_schema`` derives a JSON Schema from the type hints, for
 the MCAP schema records. ``bytes`` fields travel as base64 strings (as Foxglove expects).
 """
 
@@ -24,6 +29,10 @@ T = TypeVar("T")
 
 class DecodeError(ValueError):
     """A payload that is not a valid message of the expected type."""
+
+
+MAX_PAYLOAD_BYTES = 16 * 1024 * 1024  # a whole occupancy grid fits; a flood of junk does not
+_I64 = 2**63
 
 
 def _plain(value: Any) -> Any:
@@ -58,7 +67,7 @@ def _hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 
-def _build(tp: Any, value: Any, path: str) -> Any:
+def _build(tp: Any, value: Any, path: str, floats: str = "") -> Any:
     origin = typing.get_origin(tp)
     if tp is Any:
         return value
@@ -71,7 +80,7 @@ def _build(tp: Any, value: Any, path: str) -> Any:
             if arg is type(None):
                 continue
             try:
-                return _build(arg, value, path)
+                return _build(arg, value, path, floats)
             except DecodeError as exc:
                 errors.append(str(exc))
         raise DecodeError(f"{path}: {value!r} fits none of {tp}")
@@ -80,32 +89,43 @@ def _build(tp: Any, value: Any, path: str) -> Any:
         if not isinstance(value, list):
             raise DecodeError(f"{path}: expected a list, got {type(value).__name__}")
         if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_build(args[0], v, f"{path}[{i}]") for i, v in enumerate(value))
+            return tuple(_build(args[0], v, f"{path}[{i}]", floats) for i, v in enumerate(value))
         if len(args) != len(value):
             raise DecodeError(f"{path}: expected {len(args)} items, got {len(value)}")
         return tuple(
-            _build(a, v, f"{path}[{i}]") for i, (a, v) in enumerate(zip(args, value, strict=True))
+            _build(a, v, f"{path}[{i}]", floats)
+            for i, (a, v) in enumerate(zip(args, value, strict=True))
         )
     if origin is dict:
         kt, vt = typing.get_args(tp)
         if not isinstance(value, dict):
             raise DecodeError(f"{path}: expected an object")
-        return {_build(kt, k, path): _build(vt, v, f"{path}.{k}") for k, v in value.items()}
+        return {_build(kt, k, path): _build(vt, v, f"{path}.{k}", floats) for k, v in value.items()}
     if origin is typing.Literal:
         if value not in typing.get_args(tp):
             raise DecodeError(f"{path}: {value!r} not one of {typing.get_args(tp)}")
         return value
     if dataclasses.is_dataclass(tp):
-        return _from_dict(tp, value, path)
+        return _from_dict(tp, value, path, floats)
     if tp is float:
         if isinstance(value, str) and value in ("nan", "inf", "-inf"):
-            return float(value)
-        if isinstance(value, bool) or not isinstance(value, int | float):
+            value = float(value)
+        elif isinstance(value, bool) or not isinstance(value, int | float):
             raise DecodeError(f"{path}: expected a number, got {value!r}")
-        return float(value)
+        try:
+            value = float(value)
+        except OverflowError:
+            raise DecodeError(f"{path}: number {value} is out of range") from None
+        if floats and (value != value or (floats == "finite" and not math.isfinite(value))):
+            raise DecodeError(f"{path}: must be a {floats.replace('_', '-')} number, got {value}")
+        return value
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise DecodeError(f"{path}: expected an integer, got {value!r}")
+        if not -_I64 <= value < _I64:
+            raise DecodeError(f"{path}: integer {value} does not fit in 64 bits")
+        if path.endswith("_ns") and value < 0:
+            raise DecodeError(f"{path}: a stamp must not be negative, got {value}")
         return value
     if tp is bool:
         if not isinstance(value, bool):
@@ -125,15 +145,16 @@ def _build(tp: Any, value: Any, path: str) -> Any:
     raise DecodeError(f"{path}: unsupported field type {tp}")
 
 
-def _from_dict(cls: type[T], data: Any, path: str) -> T:
+def _from_dict(cls: type[T], data: Any, path: str, floats: str = "") -> T:
     if not isinstance(data, dict):
         raise DecodeError(f"{path or cls.__name__}: expected an object, got {type(data).__name__}")
     hints = _hints(cls)
+    floats = floats or getattr(cls, "FLOATS", "")
     kwargs = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]
         sub = f"{path}.{f.name}" if path else f.name
         if f.name in data:
-            kwargs[f.name] = _build(hints[f.name], data[f.name], sub)
+            kwargs[f.name] = _build(hints[f.name], data[f.name], sub, floats)
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
             raise DecodeError(f"{cls.__name__}: missing field {sub!r}")
     return cls(**kwargs)
@@ -144,14 +165,25 @@ def from_dict(cls: type[T], data: Any) -> T:
     return _from_dict(cls, data, "")
 
 
-def decode(cls: type[T], payload: bytes | bytearray | memoryview | str) -> T:
-    """Parse JSON bytes into ``cls``; raises DecodeError on anything malformed."""
+def decode(
+    cls: type[T],
+    payload: bytes | bytearray | memoryview | str,
+    max_bytes: int = MAX_PAYLOAD_BYTES,
+) -> T:
+    """Parse JSON bytes into ``cls``; raises DecodeError on anything malformed, too large
+    (``max_bytes``) or too deeply nested."""
+    if len(payload) > max_bytes:
+        raise DecodeError(f"{cls.__name__}: payload of {len(payload)} bytes (limit {max_bytes})")
     try:
         data = json.loads(bytes(payload) if not isinstance(payload, str) else payload)
     except (ValueError, UnicodeDecodeError) as exc:
         raise DecodeError(f"{cls.__name__}: not JSON: {exc}") from None
+    except RecursionError:
+        raise DecodeError(f"{cls.__name__}: nested too deeply") from None
     try:
         return _from_dict(cls, data, "")
+    except RecursionError:
+        raise DecodeError(f"{cls.__name__}: nested too deeply") from None
     except (TypeError, ValueError) as exc:
         if isinstance(exc, DecodeError):
             raise

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from msgs.geometry import Interval, Pose2D
 
@@ -30,7 +31,11 @@ class HeadingEstimate:
 
 @dataclass(frozen=True, slots=True)
 class PoseBox:
-    """A guaranteed box on (x, y, theta) from constraint propagation."""
+    """A guaranteed box on (x, y, theta) from constraint propagation.
+
+    Bounds may be infinite (an unknown heading); decoding refuses NaN."""
+
+    FLOATS: ClassVar[str] = "no_nan"
 
     stamp_ns: int
     robot: str

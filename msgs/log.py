@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from msgs.geometry import Pose2D
 
@@ -23,6 +24,8 @@ class RawBytes:
 @dataclass(frozen=True, slots=True)
 class GroundTruth:
     """The simulated world's true pose of one robot (only the fakes know it)."""
+
+    FLOATS: ClassVar[str] = "finite"
 
     stamp_ns: int
     robot: str

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 
 @dataclass(frozen=True, slots=True)
@@ -10,6 +11,8 @@ class RelativeMeasurement:
     """Robot ``robot`` sees robot ``target`` at ``range_m`` and ``bearing_rad`` (in the
     observer's body frame, counter-clockwise from its heading), with guaranteed error
     bounds (the true values lie within +/- the bounds)."""
+
+    FLOATS: ClassVar[str] = "finite"
 
     stamp_ns: int
     robot: str

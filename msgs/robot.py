@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from msgs.geometry import Pose2D
 
@@ -40,8 +41,10 @@ class VelocityCommand:
     """A velocity command: linear m/s forward, angular rad/s counter-clockwise.
 
     If ``left_mps``/``right_mps`` are set the command is per wheel (ARCOS VEL2) and the
-    linear/angular fields are ignored.
+    linear/angular fields are ignored. Decoding refuses non-finite numbers.
     """
+
+    FLOATS: ClassVar[str] = "finite"
 
     stamp_ns: int
     linear_mps: float = 0.0

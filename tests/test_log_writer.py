@@ -223,6 +223,19 @@ def test_rejects_bad_arguments(tmp_path: Path) -> None:
         w.write("/r1/gyro", GyroSample(T0, 0, 0), T0)
 
 
+
+def test_times_outside_uint64_are_refused_and_the_log_stays_whole(tmp_path: Path) -> None:
+    path = tmp_path / "z.mcap"
+    w = LogWriter(path)
+    w.write("/r1/gyro", GyroSample(T0, 0, 0), T0)
+    for log_ns, pub_ns in ((T0, 2**64), (-1, None), (2**64 + 5, T0)):
+        with pytest.raises(ValueError, match="uint64"):
+            w.write("/r1/gyro", GyroSample(T0, 0, 0), log_ns, pub_ns)
+    w.write("/r1/gyro", GyroSample(T0 + 1, 0, 0), T0 + 1)
+    w.close()
+    assert [m.log_time_ns for m in read_messages(path)] == [T0, T0 + 1]
+
+
 CRASH_WRITER = """
 import sys, time
 from hilnav.log.writer import LogWriter

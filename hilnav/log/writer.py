@@ -40,6 +40,7 @@ COMPRESSIONS = {
 METADATA_NAME = "hilnav"
 PROFILE = ""
 LIBRARY = "hilnav"
+_U64 = 2**64
 
 
 def _dumps(obj: Any) -> bytes:
@@ -177,6 +178,8 @@ class LogWriter:
         data = msgs.encode(msg)
         log_ns = int(log_time_ns)
         pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
+        if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
+            raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
         with self._lock:
             self._check_open()
             cid = self._channels.get((topic, name, "json"))
@@ -221,6 +224,8 @@ class LogWriter:
         ``schema_encoding``), or None for a schema-less channel."""
         log_ns = int(log_time_ns)
         pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
+        if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
+            raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
         with self._lock:
             self._check_open()
             cid = self._channel_id(topic, schema_name, schema, schema_encoding, message_encoding)
