@@ -29,61 +29,12 @@ from typing import Any
 import zenoh
 
 import msgs
-from msgs import (
-    AssociationReport,
-    DeviceDiagnostics,
-    GpsFix,
-    GroundTruth,
-    GyroSample,
-    HeadingEstimate,
-    IrScan,
-    LandmarkMap,
-    LandmarkScan,
-    OccupancyGridMsg,
-    PoseBox,
-    PoseEstimate,
-    RawBytes,
-    RelativeMeasurement,
-    RobotInfo,
-    RobotOdometry,
-    VehicleControl,
-    VelocityCommand,
-)
+from hilnav.topics import QUERIES, TOPICS, topic_type
+from msgs import GroundTruth, PoseBox
 
 PREFIX = "hilnav"
 
-# Message class of every topic; raw/<device> is RawBytes.
-TOPIC_TYPES: dict[str, type] = {
-    "odometry": RobotOdometry,
-    "gyro": GyroSample,
-    "gps": GpsFix,
-    "ir": IrScan,
-    "cmd_vel": VelocityCommand,
-    "heading": HeadingEstimate,
-    "pose": PoseEstimate,
-    "pose_box": PoseBox,
-    "map": OccupancyGridMsg,
-    "diagnostics": DeviceDiagnostics,
-    "truth": GroundTruth,
-    "info": RobotInfo,
-    "association": AssociationReport,
-    "relative": RelativeMeasurement,
-    "control": VehicleControl,
-    "landmark_scan": LandmarkScan,
-    "landmarks": LandmarkMap,
-}
-
-# What the queryables hilnav/<robot>/query/<name> answer with.
-QUERY_TYPES: dict[str, type] = {"pose": PoseEstimate, "map": OccupancyGridMsg, "info": RobotInfo}
-
 _BAD_NAME_CHARS = set("/*$?#@ ")
-
-
-def topic_type(topic: str) -> type | None:
-    """The message class of a topic name, or None if hilnav does not know it."""
-    if topic.startswith("raw/"):
-        return RawBytes
-    return TOPIC_TYPES.get(topic)
 
 
 def check_name(name: str, what: str = "robot name") -> str:
@@ -244,7 +195,7 @@ class Bus:
         """
         cls = topic_type(topic)
         if cls is None:
-            raise ValueError(f"topic {topic!r}: not a hilnav topic; known: {sorted(TOPIC_TYPES)}")
+            raise ValueError(f"topic {topic!r}: not a hilnav topic; known: {sorted(TOPICS)}")
         if robot != "*":
             check_name(robot)
         nparts = len(topic.split("/"))
@@ -339,9 +290,9 @@ class Bus:
     def query(self, robot: str, name: str, timeout_s: float = 2.0, cls: type | None = None) -> Any:
         """Ask ``hilnav/<robot>/query/<name>``; the decoded answer, or None (no answer,
         an error reply, or a malformed one, which is counted)."""
-        cls = cls or QUERY_TYPES.get(name)
+        cls = cls or QUERIES.get(name)
         if cls is None:
-            raise ValueError(f"query {name!r}: unknown; give cls= or one of {sorted(QUERY_TYPES)}")
+            raise ValueError(f"query {name!r}: unknown; give cls= or one of {sorted(QUERIES)}")
         replies = self.session.get(key(check_name(robot), f"query/{name}"), timeout=timeout_s)
         for reply in replies:  # bounded: the handler ends at the timeout
             ok = reply.ok

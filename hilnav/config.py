@@ -210,6 +210,7 @@ class LocalizationService:
     gyro_drift_bound_degps: float = field(default=0.3, metadata=_check(lambda v: v >= 0, ">= 0"))
     initial_bound_m: float = field(default=0.05, metadata=_check(lambda v: v >= 0, ">= 0"))
     initial_bound_deg: float = field(default=1.0, metadata=_check(lambda v: v >= 0, ">= 0"))
+    peer_timeout_s: float = field(default=1.0, metadata=_positive("1.0"))
 
 
 @dataclass(frozen=True)
@@ -510,6 +511,22 @@ def load_config(path: str | Path | None) -> RobotConfig:
             f"{p}: not valid TOML: {exc}; check quotes around strings and [table] headers"
         ) from None
     return parse_config(data, str(p))
+
+
+def config_data(cfg: RobotConfig) -> dict[str, Any]:
+    """The config as plain TOML/JSON-able data: ``parse_config(config_data(c))`` gives
+    back ``c`` (this is how the daemon hands its resolved config to ``hilnav fake``)."""
+
+    def plain(v: Any) -> Any:
+        if isinstance(v, tuple | list):
+            return [plain(x) for x in v]
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        return v
+
+    data = plain(dataclasses.asdict(cfg))
+    data.pop("source", None)
+    return data
 
 
 def default_toml_path() -> Path:

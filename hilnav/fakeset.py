@@ -1,150 +1,102 @@
-"""Assemble the emulated devices of one robot (used by ``hilnav fake``, the demo, tests)."""
+"""The emulated devices of one robot, from its config: the one path from a
+:class:`~hilnav.config.RobotConfig` to the fakes (``hilnav fake``, the daemon's "sim"
+ports, the demo, tests).
+
+:func:`build_fakes` takes the robot's config (name, wheel base, IR board and mounts, rates,
+GPS datum, [simulation] plan/seed/GPS rate/corruption) and the :class:`FakeKnobs` that
+are not part of a config (faults, link directory, replayed logs), and makes one emulator
+per device through the device table (:mod:`hilnav.devices`). :func:`override` applies
+``hilnav fake``'s command-line options to a config, checked like the config file itself.
+:class:`FakeProcess` runs ``hilnav fake`` as a child of the daemon, handing it the
+resolved config.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import json
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterable
+from typing import Any
 
-from fakes.pioneer import PioneerEmulator, PioneerFaults
 from fakes.runner import FakeRunner
 from fakes.world import World
-from fakes.world.floorplan import BUILTIN
+from hilnav.config import ConfigError, RobotConfig, config_data, parse_config
+from hilnav.devices import DEVICES, FakeKnobs
 from hilnav.errors import CliError
+from msgs import GroundTruth
+
+# hilnav fake's options -> the config keys they set
+OPTION_KEYS = {
+    "robot": ("name",),
+    "plan": ("simulation", "plan"),
+    "seed": ("simulation", "seed"),
+    "gps_rate": ("simulation", "gps_rate_hz"),
+    "corrupt": ("simulation", "corrupt"),
+    "ir_rate": ("devices", "ir", "rate_hz"),
+    "gyro_rate": ("devices", "gyro", "rate_hz"),
+}
 
 
-@dataclass
-class FakeOptions:
-    seed: int = 0
-    plan: str = "office"
-    robot: str = "r1"
-    link_dir: str | None = None
-    baud: int | None = None
-    corrupt: float = 0.0
-    drop: float = 0.0
-    vanish_after: float | None = None
-    vanish_for: float = 2.0
-    replay: dict[str, str] = field(default_factory=dict)
-    config: str | None = None
-    devices: tuple[str, ...] = ("arcos", "ir", "gyro", "gps")
-    ir_link: str = "serial"  # serial | slcan | python-can (virtual bus, in-process only)
-    ir_rate_hz: int = 20
-    gyro_rate_hz: int = 100
-    gps_rate_hz: float = 1.0
-    replay_fast: bool = False
-    ir_board: dict = field(default_factory=dict)  # IrBoardConfig fields (from --config)
-    wheelbase_m: float = 0.33
-
-
-def apply_config(opts: FakeOptions) -> FakeOptions:
-    """Options from the robot TOML in ``opts.config`` (if any): its name, [simulation] plan,
-    seed, GPS rate and corruption, which devices are enabled, the IR board (link, rate, id,
-    ADC, mounts) and the gyro rate. Options left at their defaults take the file's values;
-    options given on the command line win."""
-    if not opts.config:
-        return opts
-    from dataclasses import fields, replace
-
-    from hilnav.config import ConfigError, load_config
-
+def override(cfg: RobotConfig, **options: Any) -> RobotConfig:
+    """``cfg`` with the given ``hilnav fake`` options (None = not given) set, checked as
+    a config file is (a bad value names its option and config key)."""
+    data = config_data(cfg)
+    given = {k: v for k, v in options.items() if v is not None}
+    for opt, value in given.items():
+        path = OPTION_KEYS.get(opt)
+        if path is None:
+            raise ValueError(f"unknown fake option {opt!r}")
+        node = data
+        for part in path[:-1]:
+            node = node[part]
+        node[path[-1]] = value
+    if not given:
+        return cfg
     try:
-        cfg = load_config(opts.config)
-    except (ConfigError, OSError) as exc:
-        raise CliError(f"--config {opts.config}: {exc}") from None
-    d, sim = cfg.devices, cfg.simulation
-    from_file = {
-        "robot": cfg.name,
-        "plan": sim.plan,
-        "seed": sim.seed,
-        "gps_rate_hz": sim.gps_rate_hz,
-        "corrupt": sim.corrupt,
-        "devices": tuple(n for n in ("arcos", "ir", "gyro", "gps") if getattr(d, n).enabled),
-        "ir_link": "slcan" if d.ir.link == "can" else "serial",
-        "ir_rate_hz": d.ir.rate_hz,
-        "gyro_rate_hz": d.gyro.rate_hz,
-    }
-    defaults = FakeOptions()
-    changes = {
-        f.name: from_file[f.name]
-        for f in fields(FakeOptions)
-        if f.name in from_file and getattr(opts, f.name) == getattr(defaults, f.name)
-    }
-    changes["ir_board"] = {
-        "board_id": d.ir.board_id,
-        "adc_bits": d.ir.adc_bits,
-        "vref_v": d.ir.vref_v,
-        "mounts": tuple(tuple(m) for m in cfg.geometry.ir_mounts_rad()),
-    }
-    changes["wheelbase_m"] = cfg.geometry.wheel_base_m
-    return replace(opts, **changes)
+        return parse_config(data, cfg.source)
+    except ConfigError as exc:
+        flags = ", ".join("--" + k.replace("_", "-") for k in given)
+        raise CliError(f"{flags}: {exc}") from None
 
 
-def build_fakes(opts: FakeOptions) -> FakeRunner:
-    """A runner with the world and the requested emulators (not started)."""
-    opts = apply_config(opts)
-    if opts.plan not in BUILTIN:
-        raise CliError(
-            f"--plan {opts.plan!r}: unknown floor plan; choose one of {', '.join(BUILTIN)}"
-        )
-    for name, value in (("--corrupt", opts.corrupt), ("--drop", opts.drop)):
-        if not 0.0 <= value <= 1.0:
-            raise CliError(f"{name} {value}: a fraction between 0 and 1")
-    unknown = set(opts.replay) - {"gps"}
+def build_fakes(
+    cfg: RobotConfig, knobs: FakeKnobs | None = None, devices: Iterable[str] | None = None
+) -> FakeRunner:
+    """A runner with the world and one emulator per device (not started).
+
+    ``devices``: which to emulate (default: those the config enables)."""
+    knobs = knobs or FakeKnobs()
+    names = [d.name for d in DEVICES.values() if d.section(cfg).enabled]
+    if devices is not None:
+        names = list(devices)
+        bad = sorted(set(names) - set(DEVICES))
+        if bad:
+            raise CliError(f"--devices: unknown device {bad[0]!r}; choose from {','.join(DEVICES)}")
+    if not 0.0 <= knobs.drop <= 1.0:
+        raise CliError(f"--drop {knobs.drop}: a fraction between 0 and 1")
+    unknown = set(knobs.replay) - {"gps"}
     if unknown:
         raise CliError(f"--replay {sorted(unknown)[0]}=...: only gps can be replayed from a log")
-    bad = set(opts.devices) - {"arcos", "ir", "gyro", "gps"}
-    if bad:
-        raise CliError(
-            f"--devices: unknown device {sorted(bad)[0]!r}; choose from arcos,ir,gyro,gps"
-        )
-    world = World.from_name(opts.plan, seed=opts.seed)
-    world.add_robot(opts.robot, wheelbase_m=opts.wheelbase_m)
-    runner = FakeRunner(world, link_dir=opts.link_dir)
-    faults = PioneerFaults(opts.corrupt, opts.drop, opts.vanish_after, opts.vanish_for)
-    from fakes.pioneer import PioneerConfig
-
-    if "arcos" in opts.devices:
-        runner.add(
-            PioneerEmulator(
-                opts.robot, PioneerConfig(name=opts.robot, baud=opts.baud), faults, seed=opts.seed
-            )
-        )
-    _add_sensors(runner, opts)
+    world = World.from_name(cfg.simulation.plan, seed=cfg.simulation.seed)
+    world.add_robot(cfg.name, wheelbase_m=cfg.geometry.wheel_base_m)
+    runner = FakeRunner(world, link_dir=knobs.link_dir)
+    for name in names:
+        try:
+            runner.add(DEVICES[name].emulator(cfg, knobs))
+        except ValueError as exc:
+            raise CliError(f"{name}: {exc}") from None
     return runner
 
 
-def _add_sensors(runner: FakeRunner, opts: FakeOptions) -> None:
-    """The IR board, the gyro and the GPS (simulated, or a replayed NMEA log)."""
-    from drivers.irboard import IrBoardConfig
-    from fakes.gps import GpsEmulator, NmeaReplayEmulator
-    from fakes.gyro import GyroEmulator
-    from fakes.irboard import IrBoardEmulator
-    from fakes.world.gps_model import GpsErrorModel
-    from fakes.world.gyro_model import GyroErrorModel
-
-    if opts.ir_link not in ("serial", "slcan", "python-can"):
-        raise CliError(f"--ir-link {opts.ir_link!r}: choose serial, slcan or python-can")
-    if not 1.0 <= opts.gps_rate_hz <= 10.0:
-        raise CliError(f"--gps-rate {opts.gps_rate_hz}: a GPS reports at 1 to 10 Hz")
-    if not 1 <= opts.gyro_rate_hz <= 1000 or not 1 <= opts.ir_rate_hz <= 1000:
-        raise CliError("--gyro-rate / --ir-rate: between 1 and 1000 Hz")
-    if "ir" in opts.devices:
-        runner.add(
-            IrBoardEmulator(
-                opts.robot,
-                IrBoardConfig(rate_hz=opts.ir_rate_hz, **opts.ir_board),
-                link=opts.ir_link,
-                can_channel=f"hilnav-{opts.robot}",
-                seed=opts.seed + 1,
-            )
-        )
-    if "gyro" in opts.devices:
-        runner.add(GyroEmulator(opts.robot, opts.gyro_rate_hz, GyroErrorModel(seed=opts.seed + 2)))
-    if "gps" in opts.replay:
-        try:
-            runner.add(NmeaReplayEmulator(opts.replay["gps"], fast=opts.replay_fast))
-        except ValueError as exc:
-            raise CliError(str(exc)) from None
-    elif "gps" in opts.devices:
-        runner.add(GpsEmulator(opts.robot, opts.gps_rate_hz, GpsErrorModel(seed=opts.seed + 3)))
+def sim_devices(cfg: RobotConfig) -> list[str]:
+    """The enabled devices whose port is "sim" (what the daemon asks the fake for)."""
+    return [
+        d.name for d in DEVICES.values() if d.section(cfg).enabled and d.section(cfg).port == "sim"
+    ]
 
 
 class TruthPublisher:
@@ -172,10 +124,6 @@ class TruthPublisher:
         if self._due < 1.0:
             return
         self._due -= int(self._due)
-        import time
-
-        from msgs import GroundTruth
-
         r = self._runner.world.robots[self.robot]
         msg = GroundTruth(time.time_ns(), self.robot, r.pose, r.speed_mps, r.yaw_rate_radps)
         try:
@@ -189,3 +137,63 @@ class TruthPublisher:
 
     def ports(self) -> dict[str, str]:
         return {}
+
+
+class FakeProcessError(RuntimeError):
+    """The emulated devices did not start: the message carries their stderr."""
+
+
+class FakeProcess:
+    """``hilnav fake`` in a subprocess for the devices of ``cfg`` whose port is "sim".
+
+    The resolved config goes to the child as one JSON line on its stdin, which the child
+    then watches: when this process dies for any reason (SIGKILL included) the pipe closes
+    and the child stops, so no orphan keeps publishing a world nobody drives."""
+
+    def __init__(
+        self, cfg: RobotConfig, zenoh_endpoint: str | None, timeout_s: float = 30.0
+    ) -> None:
+        cmd = [sys.executable, "-m", "hilnav", "fake", "--config", "-"]
+        cmd += ["--devices", ",".join(sim_devices(cfg))]
+        if zenoh_endpoint:
+            cmd += ["--zenoh-connect", zenoh_endpoint]
+        self.proc = subprocess.Popen(
+            cmd,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(json.dumps(config_data(cfg)) + "\n")
+        self.proc.stdin.flush()
+        self.ports = self._read_ports(timeout_s)
+
+    def _read_ports(self, timeout_s: float) -> dict[str, str]:
+        got: list[str] = []
+        assert self.proc.stdout is not None
+        out = self.proc.stdout
+        t = threading.Thread(target=lambda: got.append(out.readline()), daemon=True)
+        t.start()
+        t.join(timeout_s)
+        try:
+            ports = json.loads(got[0] if got else "")
+        except ValueError:
+            self.stop()
+            err = self.proc.stderr.read() if self.proc.stderr else ""
+            raise FakeProcessError(
+                f"the emulated devices did not start: {err.strip()[-400:]}"
+            ) from None
+        return {str(k): str(v) for k, v in ports.items()}
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=5.0)
+        for s in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
+            if s is not None:
+                s.close()

@@ -1,48 +1,108 @@
 """The services of one robot wired together: device messages in, estimates and maps out.
 
-``Pipeline(config).feed(topic, msg)`` takes one device message (topics of INTERFACES.md:
-odometry, gyro, gps, ir; others are ignored) and returns the ``(topic, msg)`` outputs it
-caused, in a fixed order: heading, pose, pose_box, association, map. No threads, no
-clocks (time is the messages' stamps), seeded randomness: the same inputs in the same
-order give the same outputs, which is what ``hilnav replay`` relies on. Each service is
-switched on or off by ``[services.*].enabled``.
+``Pipeline(config).feed(topic, msg)`` takes one message of a service-input topic
+(:data:`hilnav.topics.SERVICE_INPUTS`; others are ignored) and returns the
+``(topic, msg)`` outputs it caused, in a fixed order: heading, pose, pose_box,
+association, map. Time is the messages' stamps and randomness is seeded: the same inputs
+in the same order give the same outputs, which is what ``hilnav replay`` relies on. Each
+service is switched on or off by ``[services.*].enabled``.
 
 Wiring (see hilnav.services for each adapter):
 
     odometry, gyro ------> heading ---> mapping (with each ir scan) ---> map, association
     odometry, gyro, gps -> pose (frame "map")
-    odometry, gyro, gps -> localization (CP) ---> pose_box
+    odometry, gyro, gps -> localization (CP) ---> pose_box (+ the fleet's pose boxes)
+
+On a robot the mapping service runs in a :class:`MappingWorker` thread the pipeline owns
+(``Pipeline(cfg, on_mapping=...)``), fed the same inputs in the same order, so a slow
+data-association step never delays the pose; its outputs go to ``on_mapping(topic, msg,
+tag)`` with the ``tag`` of the input that caused them (the daemon's receive time).
 """
 
 from __future__ import annotations
 
+import queue
+import threading
 from collections.abc import Callable
 from typing import Any
 
 from hilnav.config import RobotConfig
 from hilnav.services import HeadingAdapter, LocalizationAdapter, MappingAdapter, PoseAdapter
+from hilnav.topics import SERVICE_INPUTS
 
-INPUT_TOPICS = ("odometry", "gyro", "gps", "ir")
+Outputs = list[tuple[str, Any]]
+MappingSink = Callable[[str, Any, Any], None]
+FaultSink = Callable[[str, BaseException], None]
+
+
+class MappingWorker:
+    """The mapping service in its own thread: inputs queued in order, outputs to a sink."""
+
+    def __init__(
+        self,
+        mapping: MappingAdapter,
+        sink: MappingSink,
+        on_fault: FaultSink,
+        latest: dict[str, Any],
+        queue_size: int = 20000,
+    ) -> None:
+        self.mapping = mapping
+        self.sink = sink
+        self.on_fault = on_fault
+        self.latest = latest
+        self.dropped = 0
+        self._q: queue.Queue[tuple[str, Any, Any]] = queue.Queue(maxsize=queue_size)
+        self._thread = threading.Thread(target=self._loop, name="mapping", daemon=True)
+        self._thread.start()
+
+    def put(self, topic: str, msg: Any, tag: Any) -> None:
+        try:
+            self._q.put_nowait((topic, msg, tag))
+        except queue.Full:
+            self.dropped += 1
+
+    def _loop(self) -> None:
+        while True:
+            topic, msg, tag = self._q.get()
+            if msg is None:
+                return
+            try:
+                outs = self.mapping.feed(topic, msg)
+            except Exception as exc:  # noqa: BLE001 - a mapping bug must not stop the robot
+                self.on_fault("mapping", exc)
+                continue
+            for t, m in outs:
+                self.latest[t] = m
+                try:
+                    self.sink(t, m, tag)
+                except Exception as exc:  # noqa: BLE001
+                    self.on_fault("mapping", exc)
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Finish what is queued, then stop the thread."""
+        self._q.put(("", None, None))
+        self._thread.join(timeout_s)
 
 
 class Pipeline:
     """Deterministic service graph of one robot (see the module docstring)."""
 
     def __init__(
-        self, config: RobotConfig, mapping_sink: Callable[[str, Any], None] | None = None
+        self,
+        config: RobotConfig,
+        on_mapping: MappingSink | None = None,
+        on_fault: FaultSink | None = None,
     ) -> None:
-        """``mapping_sink``: instead of running the mapping service inline, hand it its
-        inputs (heading, ir) in order; the daemon runs it in its own thread so a slow
-        association step never delays the pose. Same inputs in the same order: same map."""
         self.config = config
-        self.mapping_sink = mapping_sink
         sv = config.services
         self.heading = HeadingAdapter(config) if sv.heading.enabled else None
         self.pose = PoseAdapter(config) if sv.pose.enabled else None
         self.localization = LocalizationAdapter(config) if sv.localization.enabled else None
         self.mapping = MappingAdapter(config) if sv.mapping.enabled else None
         self.latest: dict[str, Any] = {}
-        self.counts: dict[str, int] = {}
+        self.worker: MappingWorker | None = None
+        if self.mapping is not None and on_mapping is not None:
+            self.worker = MappingWorker(self.mapping, on_mapping, on_fault or _ignore, self.latest)
 
     @property
     def services(self) -> list[str]:
@@ -50,12 +110,12 @@ class Pipeline:
         names = ("heading", "pose", "localization", "mapping")
         return [n for n in names if getattr(self, n) is not None]
 
-    def feed(self, topic: str, msg: Any) -> list[tuple[str, Any]]:
-        """Outputs caused by one input message (none for topics the services ignore)."""
-        if topic not in INPUT_TOPICS:
+    def feed(self, topic: str, msg: Any, tag: Any = None) -> Outputs:
+        """Outputs caused by one input message (none for topics the services ignore);
+        with a mapping worker, the mapping's outputs come later, through its sink."""
+        if topic not in SERVICE_INPUTS:
             return []
-        self.counts[topic] = self.counts.get(topic, 0) + 1
-        out: list[tuple[str, Any]] = []
+        out: Outputs = []
         if self.heading is not None:
             out += self.heading.feed(topic, msg)
         if self.pose is not None:
@@ -65,20 +125,30 @@ class Pipeline:
         if self.mapping is not None:
             for t, m in [*out, (topic, msg)]:
                 if t in ("heading", "ir"):
-                    if self.mapping_sink is not None:
-                        self.mapping_sink(t, m)
+                    if self.worker is not None:
+                        self.worker.put(t, m, tag)
                     else:
                         out += self.mapping.feed(t, m)
         for t, m in out:
             self.latest[t] = m
         return out
 
-    def feed_other(self, robot: str, topic: str, msg: Any) -> list[tuple[str, Any]]:
+    def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
         """Messages of other fleet robots (cooperative localization: their pose boxes)."""
-        if self.localization is not None and hasattr(self.localization, "feed_other"):
-            return list(self.localization.feed_other(robot, topic, msg))
+        if self.localization is not None:
+            return self.localization.feed_other(robot, topic, msg)
         return []
 
-    def map_now(self, stamp_ns: int) -> Any | None:
-        """The current map as a message (for the map queryable), or None if no mapping."""
-        return self.mapping.map_msg(stamp_ns) if self.mapping is not None else None
+    def drop_peer(self, robot: str) -> None:
+        """A peer left (or went silent): forget its box."""
+        if self.localization is not None:
+            self.localization.drop_peer(robot)
+
+    def close(self) -> None:
+        """Let the mapping worker finish its queue (no-op without one)."""
+        if self.worker is not None:
+            self.worker.close()
+
+
+def _ignore(where: str, exc: BaseException) -> None:
+    return None

@@ -273,9 +273,13 @@ class LocalizationAdapter:
         return [("pose_box", box)]
 
     def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
-        if topic == "pose_box" and isinstance(msg, PoseBox):
+        """A peer's box (a box that claims another robot than its sender is ignored)."""
+        if topic == "pose_box" and isinstance(msg, PoseBox) and msg.robot == robot:
             self.cp.feed_peer_box(msg)
         return []
+
+    def drop_peer(self, robot: str) -> None:
+        self.cp.drop_peer(robot)
 
 
 class MappingAdapter:

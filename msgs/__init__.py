@@ -4,7 +4,7 @@ SI units throughout (metres, radians, seconds, volts); stamps are integer nanose
 """
 
 from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, schema_name, to_dict
-from msgs.diagnostics import DeviceDiagnostics
+from msgs.diagnostics import DaemonStatus, DeviceDiagnostics
 from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D, wrap_angle
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
@@ -16,6 +16,7 @@ from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
 
 __all__ = [
     "AssociationReport",
+    "DaemonStatus",
     "DecodeError",
     "DeviceDiagnostics",
     "GpsFix",

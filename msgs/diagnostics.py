@@ -1,8 +1,8 @@
-"""Device health counters, published at 1 Hz by the daemon for every device."""
+"""Health counters published at 1 Hz by the daemon: one per device, one for itself."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 
 @dataclass(frozen=True, slots=True)
@@ -26,3 +26,32 @@ class DeviceDiagnostics:
     last_seen_ns: int = 0
     rate_hz: float = 0.0
     last_error: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class DaemonStatus:
+    """Health of one daemon's own loop, bus and motion gate since it started.
+
+    bus_*: Zenoh samples received, refused as malformed (bad JSON, types, ranges, size,
+    nesting) or as foreign (not from the fleet), and callbacks that raised; queue_*:
+    messages the service loop handled, and dropped because it fell behind; faults: the
+    exceptions caught per place (services, log, bus, mapping, diagnostics, watchdog) and
+    the last one; cmd_*: velocity commands obeyed, refused, and the stops made by the
+    command timeout and by a stalled service loop.
+    """
+
+    stamp_ns: int
+    robot: str
+    bus_received: int = 0
+    bus_malformed: int = 0
+    bus_foreign: int = 0
+    bus_callback_errors: int = 0
+    bus_last_problem: str = ""
+    queue_processed: int = 0
+    queue_dropped: int = 0
+    faults: dict[str, int] = field(default_factory=dict)
+    last_fault: str = ""
+    cmd_received: int = 0
+    cmd_rejected: int = 0
+    cmd_timeouts: int = 0
+    cmd_stalls: int = 0

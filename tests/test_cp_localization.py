@@ -210,20 +210,16 @@ def test_message_level_api():
 
 
 def test_pipeline_adapter_throttles_and_takes_peer_boxes():
-    from localization.service import CPService
+    from hilnav.config import parse_config
+    from hilnav.services import LocalizationAdapter
 
     sc = simulate(duration_s=2.0, seed=10)
-    svc = CPService(_cfg(sc, window=10), robot="r1", publish_every_s=0.5)
+    cfg = parse_config({"services": {"localization": {"publish_every_s": 0.5}}})
+    svc = LocalizationAdapter(cfg)
     outs = []
     for s, odo in enumerate(_odometry_msgs(sc, 0)):
         outs += svc.feed("odometry", odo)
         outs += svc.feed("gyro", GyroSample(odo.stamp_ns, 0.0, float(sc.gyro[0, s])))
-        outs += svc.feed(
-            "gps",
-            GpsFix(
-                odo.stamp_ns, mode=3, east_m=float(sc.gps[0, s, 0]), north_m=float(sc.gps[0, s, 1])
-            ),
-        )
         outs += svc.feed("ir", object())  # not ours: ignored
     stamps = [m.stamp_ns for t, m in outs]
     assert all(t == "pose_box" for t, _ in outs)

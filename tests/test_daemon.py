@@ -69,7 +69,7 @@ def running(tmp_path_factory):
     )
     op = Bus("operator", ZenohSettings.loopback(connect_ports=[port]), fleet=["r1"])
     seen = Seen()
-    for topic in ("pose", "odometry", "diagnostics", "map", "heading"):
+    for topic in ("pose", "odometry", "diagnostics", "map", "heading", "status"):
         op.subscribe("r1", topic, lambda robot, msg, t=topic: seen.add(t, msg))
     op.on_liveliness(lambda robot, alive: seen.alive.append((robot, alive)))
     yield proc, op, seen, log, port
@@ -127,12 +127,12 @@ def test_commands_from_outside_the_fleet_and_malformed_ones_are_counted_not_obey
             raw.put(key("r1", "cmd_vel"), b"\xff{garbage", attachment=b"operator")
             time.sleep(0.1)
 
-        def bus_diag():
-            d = [m for m in seen.get("diagnostics") if m.device == "bus"]
+        def status():
+            d = seen.get("status")
             return d[-1] if d else None
 
-        assert _wait(lambda: bus_diag() is not None and bus_diag().bad_checksums >= 5, 4.0)
-        assert bus_diag().frames_lost >= 5  # foreign
+        assert _wait(lambda: status() is not None and status().bus_malformed >= 5, 4.0)
+        assert status().bus_foreign >= 5
         after = seen.get("odometry")[-1]
         assert math.hypot(after.pose.x - before.x, after.pose.y - before.y) < 0.02
         assert abs(after.linear_vel_mps) < 1e-3
@@ -145,7 +145,9 @@ def test_diagnostics_per_device_at_about_one_hz(running):
     assert _wait(lambda: len([m for m in seen.get("diagnostics") if m.device == "gyro"]) >= 3)
     diags = seen.get("diagnostics")
     devices = {m.device for m in diags}
-    assert {"arcos", "ir", "gyro", "gps", "bus", "queue"} <= devices
+    assert devices == {"arcos", "ir", "gyro", "gps"}
+    st = seen.get("status")[-1]
+    assert st.robot == "r1" and st.queue_processed > 100 and st.queue_dropped == 0
     gyro = [m for m in diags if m.device == "gyro"][-1]
     assert gyro.connected and gyro.frames_ok > 100 and 60 < gyro.rate_hz < 140
     ir = [m for m in diags if m.device == "ir"][-1]
@@ -177,6 +179,7 @@ def test_sigterm_exits_0_with_a_closed_log_of_every_topic(running):
         "/r1/pose": "hilnav.PoseEstimate",
         "/r1/map": "foxglove.Grid",
         "/r1/diagnostics": "hilnav.DeviceDiagnostics",
+        "/r1/status": "hilnav.DaemonStatus",
         "/r1/cmd_vel": "hilnav.VelocityCommand",
         "/r1/truth": "hilnav.GroundTruth",
         "/r1/info": "hilnav.RobotInfo",

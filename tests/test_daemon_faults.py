@@ -5,6 +5,9 @@ counted and the loop goes on, and a stalled service loop stops the wheels by its
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
 import threading
 import time
 
@@ -15,6 +18,7 @@ from hilnav.bus import Bus, ZenohSettings, free_tcp_port, key
 from hilnav.config import parse_config
 from hilnav.daemon import Daemon
 from msgs import GroundTruth, VelocityCommand
+from tests.conftest import HILNAV, hilnav_env
 
 
 def _wait(cond, timeout_s: float) -> bool:
@@ -99,9 +103,9 @@ def test_hostile_commands_never_move_the_robot_nor_stop_the_loop(robot):
     processed = d.stats.processed
     time.sleep(1.0)
     assert d.stats.processed > processed + 50  # the loop goes on
-    assert d._loop_thread.is_alive() and d._watchdog_thread.is_alive()
+    assert d._loop_thread.is_alive() and d.motion.alive
     assert truth.max_speed < 1e-3  # the robot never moved
-    assert d.stats.cmd_received == 0
+    assert d.motion.gate.received == 0
     assert sum(d.stats.faults.values()) == faults_before
 
 
@@ -109,7 +113,7 @@ def test_an_exception_in_a_service_is_counted_and_the_loop_goes_on(robot, monkey
     d, _, _, _ = robot
     real = d.pipeline.feed
 
-    def broken(topic, msg):  # noqa: ANN001, ANN202
+    def broken(topic, msg, tag=None):  # noqa: ANN001, ANN202
         raise struct_error("a bug in a service")
 
     monkeypatch.setattr(d.pipeline, "feed", broken)
@@ -135,9 +139,9 @@ def test_a_stalled_service_loop_stops_the_robot(robot, monkeypatch):
     release = threading.Event()
     real = d.pipeline.feed
 
-    def hang(topic, msg):  # noqa: ANN001, ANN202
+    def hang(topic, msg, tag=None):  # noqa: ANN001, ANN202
         release.wait(20.0)
-        return real(topic, msg)
+        return real(topic, msg, tag)
 
     monkeypatch.setattr(d.pipeline, "feed", hang)
     stalled_at = time.monotonic()
@@ -154,10 +158,54 @@ def test_a_stalled_service_loop_stops_the_robot(robot, monkeypatch):
             time.sleep(0.05)
         assert stopped is not None, truth.last
         assert stopped < 2.0  # stall_s (0.3) + the deceleration ramp
-        assert d.stats.cmd_stalls >= 1 and d.gate.rejected > 0
+        assert d.motion.gate.stalls >= 1 and d.motion.gate.rejected > 0
     finally:
         release.set()
     monkeypatch.setattr(d.pipeline, "feed", real)
     # the loop is back: commands are obeyed again
     assert _wait(lambda: (op.publish_to("r1", "cmd_vel", VelocityCommand(
         time.time_ns(), 0.2, 0.0, source="operator")) or truth.speed() > 0.1), 5.0)  # fmt: skip
+
+
+def _children(pid: int) -> list[int]:
+    out: list[int] = []
+    try:
+        for tid in os.listdir(f"/proc/{pid}/task"):
+            with open(f"/proc/{pid}/task/{tid}/children") as f:
+                out += [int(p) for p in f.read().split()]
+    except FileNotFoundError:
+        pass
+    return out
+
+
+def _gone(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(") ", 1)[1].startswith("Z")  # a zombie is gone too
+    except FileNotFoundError:
+        return True
+
+
+def test_the_fake_process_dies_with_a_killed_daemon(tmp_path):
+    cfg = tmp_path / "r1.toml"
+    cfg.write_text(
+        f'name = "r1"\n[zenoh]\nlisten = ["tcp/127.0.0.1:{free_tcp_port()}"]\n'
+        "[log]\nenabled = false\n[services.mapping]\nenabled = false\n"
+    )
+    proc = subprocess.Popen(
+        [*HILNAV, "run", "--config", str(cfg), "--quiet"],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=hilnav_env(),
+    )  # fmt: skip
+    try:
+        assert proc.stdout is not None and " up" in proc.stdout.readline()
+        kids = _children(proc.pid)
+        assert kids, "the daemon runs its fakes as a child process"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(10)
+        assert _wait(lambda: all(_gone(k) for k in kids), 5.0), kids
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+        if proc.stdout is not None:
+            proc.stdout.close()

@@ -223,7 +223,6 @@ def test_rejects_bad_arguments(tmp_path: Path) -> None:
         w.write("/r1/gyro", GyroSample(T0, 0, 0), T0)
 
 
-
 def test_times_outside_uint64_are_refused_and_the_log_stays_whole(tmp_path: Path) -> None:
     path = tmp_path / "z.mcap"
     w = LogWriter(path)

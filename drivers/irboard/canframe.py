@@ -113,3 +113,24 @@ class CanSampleDecoder:
         self._last = s.seq
         self.stats.frames_ok += 1
         return s
+
+
+# A CAN frame as logged (msgs.RawBytes of the IR device on CAN): the arbitration id as 4
+# big-endian bytes, with bit 31 set for an extended id (SocketCAN's CAN_EFF_FLAG), then
+# the data bytes.
+EFF_FLAG = 0x8000_0000
+
+
+def pack_raw_frame(arb_id: int, data: bytes, is_extended: bool = False) -> bytes:
+    word = arb_id | (EFF_FLAG if is_extended else 0)
+    return word.to_bytes(4, "big") + bytes(data)
+
+
+def unpack_raw_frame(raw: bytes) -> tuple[int, bytes, bool] | None:
+    """(arbitration id, data, extended) of a logged frame; None if it is too short.
+    Logs written before the flag existed mark nothing: an id over 11 bits is extended."""
+    if len(raw) < 4 or len(raw) > 4 + 64:
+        return None
+    word = int.from_bytes(raw[:4], "big")
+    arb = word & 0x1FFF_FFFF
+    return arb, bytes(raw[4:]), bool(word & EFF_FLAG) or arb > 0x7FF

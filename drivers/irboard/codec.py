@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from drivers.irboard.canframe import CanSampleDecoder
+from drivers.irboard.canframe import CanSampleDecoder, unpack_raw_frame
 from drivers.irboard.convert import IrBoardConfig, IrConverter
 from drivers.irboard.serialframe import SerialFrameDecoder
 from msgs import IrScan
@@ -42,3 +42,11 @@ class IrCanCodec:
     ) -> IrScan | None:
         s = self.decoder.feed_frame(arb_id, data, is_extended)
         return None if s is None else self.converter(s, stamp_ns)
+
+    def feed(self, raw: bytes, stamp_ns: int) -> list[IrScan]:
+        """One logged frame (:func:`drivers.irboard.canframe.pack_raw_frame`) -> scans."""
+        frame = unpack_raw_frame(raw)
+        if frame is None:
+            return []
+        scan = self.feed_frame(frame[0], frame[1], stamp_ns, frame[2])
+        return [] if scan is None else [scan]

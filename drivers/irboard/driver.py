@@ -14,7 +14,7 @@ from typing import Any
 import can
 
 from drivers.base import Clock, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
-from drivers.irboard.canframe import SAMPLE_ID_BASE, pack_set_rate
+from drivers.irboard.canframe import SAMPLE_ID_BASE, pack_raw_frame, pack_set_rate
 from drivers.irboard.codec import IrCanCodec, IrSerialCodec
 from drivers.irboard.convert import IrBoardConfig
 from drivers.irboard.serialframe import set_rate_command
@@ -137,8 +137,9 @@ class IrCanDriver(LinkDiagnostics):
                     break
                 stamp = self.clock()
                 if self.on_raw:
-                    raw = msg.arbitration_id.to_bytes(4, "big") + bytes(msg.data)
-                    self.on_raw(raw, stamp)
+                    self.on_raw(
+                        pack_raw_frame(msg.arbitration_id, msg.data, msg.is_extended_id), stamp
+                    )
                 if msg.is_error_frame or msg.is_remote_frame:
                     continue
                 scan = self.codec.feed_frame(

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import signal
 import sys
 import threading
 
+from hilnav.config import ConfigError, RobotConfig, load_config, parse_config
+from hilnav.devices import FakeKnobs
 from hilnav.errors import CliError
-from hilnav.fakeset import FakeOptions, build_fakes
+from hilnav.fakeset import build_fakes, override
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,20 +21,26 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="emulated devices on ptys, driven by a simulated world",
         description="Start the emulated devices of one simulated robot. Prints ONE JSON line "
         'mapping device names to port paths (e.g. {"arcos": "/tmp/hilnav-fake-x/arcos"}) once '
-        "they are ready, then runs until SIGINT/SIGTERM or --duration.",
+        "they are ready, then runs until SIGINT/SIGTERM or --duration. The robot (name, wheel "
+        "base, IR board and mounts, rates, GPS datum, [simulation]) comes from --config or "
+        "the defaults; the options below override it.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument(
         "--config",
-        help="robot TOML file: name, [simulation], enabled devices, IR board, rates "
-        "(options given here win over the file)",
+        help='robot TOML file, or "-": the resolved config as one JSON line on stdin, after '
+        "which the fake exits when stdin closes (how hilnav run starts it: it dies with "
+        "its parent)",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of every random process")
+    p.add_argument("--seed", type=int, default=None, help="seed of every random process [0]")
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
-    p.add_argument("--plan", default="office", help="floor plan: paper_room, office, open_field")
-    p.add_argument("--robot", default="r1", help="robot name in the world")
+    p.add_argument("--plan", default=None, help="floor plan: paper_room, office, open_field")
+    p.add_argument("--robot", default=None, help="robot name in the world [r1]")
     p.add_argument("--link-dir", help="directory for the stable port links (default: a temp dir)")
     p.add_argument("--baud", type=int, default=None, help="pace the Pioneer's output at this baud")
-    p.add_argument("--corrupt", type=float, default=0.0, help="fraction of Pioneer bytes corrupted")
+    p.add_argument(
+        "--corrupt", type=float, default=None, help="fraction of Pioneer bytes corrupted"
+    )
     p.add_argument("--drop", type=float, default=0.0, help="fraction of Pioneer packets dropped")
     p.add_argument(
         "--vanish-after", type=float, default=None, help="the Pioneer port vanishes after S s"
@@ -51,17 +60,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--ir-link",
-        default="serial",
+        default=None,
         choices=("serial", "slcan", "python-can"),
-        help="IR board on its serial port, or on CAN behind an emulated slcan adapter",
+        help="IR board on its serial port, or on CAN behind an emulated slcan adapter "
+        "(default: the config's devices.ir.link)",
     )
-    p.add_argument("--ir-rate", type=int, default=20, help="IR board samples per second")
-    p.add_argument("--gyro-rate", type=int, default=100, help="gyro packets per second")
-    p.add_argument("--gps-rate", type=float, default=1.0, help="GPS epochs per second (1-10)")
+    p.add_argument("--ir-rate", type=int, default=None, help="IR board samples per second [20]")
+    p.add_argument("--gyro-rate", type=int, default=None, help="gyro packets per second [100]")
+    p.add_argument("--gps-rate", type=float, default=None, help="GPS epochs per second (1-10)")
     p.add_argument(
         "--devices",
-        default="arcos,ir,gyro,gps",
-        help="comma-separated devices to emulate (default arcos,ir,gyro,gps)",
+        default=None,
+        help="comma-separated devices to emulate (default: those the config enables)",
     )
     p.add_argument(
         "--zenoh-connect",
@@ -70,8 +80,36 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="publish the ground truth on hilnav/<robot>/truth through a Zenoh peer "
         "connected to ENDPOINT (e.g. tcp/127.0.0.1:7447; multicast scouting off)",
     )
-    p.add_argument("--truth-rate", type=float, default=10.0, help="ground-truth messages per s")
+    p.add_argument("--truth-rate", type=float, default=None, help="ground-truth messages per s")
     p.set_defaults(func=run)
+
+
+def _config(args: argparse.Namespace) -> RobotConfig:
+    """The robot config: the file, the JSON line on stdin, or the defaults."""
+    try:
+        if args.config == "-":
+            line = sys.stdin.readline()
+            try:
+                data = json.loads(line)
+            except ValueError:
+                raise CliError(
+                    "--config -: expected the config as one JSON line on stdin"
+                ) from None
+            return parse_config(data, "<stdin>")
+        return load_config(args.config)
+    except ConfigError as exc:
+        raise CliError(f"--config {args.config}: {exc}") from None
+
+
+def _watch_stdin(done: threading.Event) -> None:
+    """Stop when the parent's end of stdin closes (the parent died or stopped us)."""
+
+    def watch() -> None:
+        while sys.stdin.readline():
+            pass
+        done.set()
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -81,26 +119,37 @@ def run(args: argparse.Namespace) -> int:
         if not sep or not path:
             raise CliError(f"--replay {item!r}: expected DEVICE=FILE, e.g. gps=recorded.nmea")
         replay[dev] = path
-    opts = FakeOptions(
-        seed=args.seed,
-        plan=args.plan,
+    cfg = override(
+        _config(args),
         robot=args.robot,
+        plan=args.plan,
+        seed=args.seed,
+        gps_rate=args.gps_rate,
+        corrupt=args.corrupt,
+        ir_rate=args.ir_rate,
+        gyro_rate=args.gyro_rate,
+    )
+    if args.ir_link is not None:
+        link = "serial" if args.ir_link == "serial" else "can"
+        cfg = dataclasses.replace(
+            cfg, devices=dataclasses.replace(
+                cfg.devices, ir=dataclasses.replace(cfg.devices.ir, link=link)
+            )
+        )  # fmt: skip
+    knobs = FakeKnobs(
         link_dir=args.link_dir,
         baud=args.baud,
-        corrupt=args.corrupt,
         drop=args.drop,
         vanish_after=args.vanish_after,
         vanish_for=args.vanish_for,
         replay=replay,
-        config=args.config,
-        devices=tuple(d.strip() for d in args.devices.split(",") if d.strip()),
-        ir_link=args.ir_link,
-        ir_rate_hz=args.ir_rate,
-        gyro_rate_hz=args.gyro_rate,
-        gps_rate_hz=args.gps_rate,
         replay_fast=args.replay_fast,
+        ir_link="python-can" if args.ir_link == "python-can" else "",
     )
-    runner = build_fakes(opts)
+    devices = None
+    if args.devices is not None:
+        devices = [d.strip() for d in args.devices.split(",") if d.strip()]
+    runner = build_fakes(cfg, knobs, devices)
     bus = None
     if args.zenoh_connect:
         from hilnav.bus import Bus, ZenohSettings
@@ -109,12 +158,13 @@ def run(args: argparse.Namespace) -> int:
         # gossip on, listening on loopback only: when the daemon gossips too (the demo),
         # other sessions (the operator) reach this one directly and see the truth
         bus = Bus(
-            opts.robot,
+            cfg.name,
             ZenohSettings(
                 listen=("tcp/127.0.0.1:0",), connect=(args.zenoh_connect,), gossip_scouting=True
             ),
         )
-        runner.add(TruthPublisher(opts.robot, bus, args.truth_rate))
+        rate = args.truth_rate or cfg.simulation.truth_rate_hz
+        runner.add(TruthPublisher(cfg.name, bus, rate))
     done = threading.Event()
 
     def on_signal(signum, frame):  # noqa: ANN001
@@ -125,6 +175,8 @@ def run(args: argparse.Namespace) -> int:
     runner.start()
     try:
         print(json.dumps(runner.ports()), flush=True)
+        if args.config == "-":
+            _watch_stdin(done)
         done.wait(args.duration)
     finally:
         runner.stop()

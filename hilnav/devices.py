@@ -1,0 +1,225 @@
+"""The device table: everything hilnav knows per device, in one entry each.
+
+Like python-can's interface registry, a device is one :class:`Device` entry in
+:data:`DEVICES`: its config section (``[devices.<name>]`` of the robot TOML, a field of
+:class:`hilnav.config.Devices`), the messages its driver yields (their topics are in
+:mod:`hilnav.topics`), and three factories from a :class:`~hilnav.config.RobotConfig`:
+
+- ``driver(cfg, on_raw)``: the driver the daemon and ``hilnav probe`` run;
+- ``codec(cfg)``: the bytes -> messages codec ``hilnav replay`` rebuilds messages with
+  from the logged raw bytes (``codec.feed(data, stamp_ns) -> [msg]``, one raw record at
+  a time; the IR board on CAN logs one frame per record,
+  :func:`drivers.irboard.canframe.pack_raw_frame`);
+- ``emulator(cfg, knobs)``: the emulated twin ``hilnav fake`` serves (knobs: the fault
+  and test settings that are not part of a robot's config, :class:`FakeKnobs`);
+
+and ``attach(section, ports)``, which points a "sim" port at the port the fake printed.
+Adding a fifth device is one entry here plus its config section.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from hilnav.config import RobotConfig, ir_board_config
+from msgs import GpsFix, GyroSample, IrScan, RobotInfo, RobotOdometry
+
+RawHook = Callable[[bytes, int], None] | None
+
+
+@dataclass(frozen=True)
+class FakeKnobs:
+    """Emulator settings that are not part of a robot's config: faults and test links."""
+
+    link_dir: str | None = None
+    baud: int | None = None  # pace the Pioneer's output like a real link
+    drop: float = 0.0  # fraction of Pioneer packets dropped
+    vanish_after: float | None = None  # the Pioneer port disappears after S s ...
+    vanish_for: float = 2.0  # ... for S s
+    replay: dict[str, str] = field(default_factory=dict)  # device -> recorded file
+    replay_fast: bool = False
+    ir_link: str = ""  # "python-can": the IR board on an in-process virtual CAN bus
+
+
+@dataclass(frozen=True)
+class Device:
+    name: str
+    doc: str
+    messages: tuple[type, ...]
+    driver: Callable[[RobotConfig, RawHook], Any]
+    codec: Callable[[RobotConfig], Any]
+    emulator: Callable[[RobotConfig, FakeKnobs], Any]
+    attach: Callable[[Any, dict[str, str]], Any]
+
+    def section(self, cfg: RobotConfig) -> Any:
+        return getattr(cfg.devices, self.name)
+
+
+def _port(key: str) -> Callable[[Any, dict[str, str]], Any]:
+    def attach(section: Any, ports: dict[str, str]) -> Any:
+        return dataclasses.replace(section, port=ports[key]) if key in ports else section
+
+    return attach
+
+
+# -- arcos -------------------------------------------------------------------------------
+def _arcos_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+    from drivers.arcos.driver import ArcosDriver, ArcosOptions
+
+    a = cfg.devices.arcos
+    return ArcosDriver(a.port, ArcosOptions(baud=a.baud), on_raw=on_raw)
+
+
+def _arcos_codec(cfg: RobotConfig) -> Any:
+    from drivers.arcos.codec import ArcosCodec
+
+    return ArcosCodec()
+
+
+def _arcos_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:
+    from fakes.pioneer import PioneerConfig, PioneerEmulator, PioneerFaults
+
+    faults = PioneerFaults(cfg.simulation.corrupt, knobs.drop, knobs.vanish_after, knobs.vanish_for)
+    pc = PioneerConfig(name=cfg.name, baud=knobs.baud)
+    return PioneerEmulator(cfg.name, pc, faults, seed=cfg.simulation.seed)
+
+
+# -- ir ------------------------------------------------------------------------------------
+def _ir_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+    from drivers.irboard.driver import IrCanDriver, IrSerialDriver
+
+    ir = cfg.devices.ir
+    board = ir_board_config(cfg)
+    if ir.link == "can":
+        chan = ir.can_channel or ir.port
+        return IrCanDriver(ir.can_interface, chan, board, bitrate=ir.can_bitrate, on_raw=on_raw)
+    return IrSerialDriver(ir.port, board, baud=ir.baud, on_raw=on_raw)
+
+
+def _ir_codec(cfg: RobotConfig) -> Any:
+    from drivers.irboard.codec import IrCanCodec, IrSerialCodec
+
+    board = ir_board_config(cfg)
+    return IrCanCodec(board) if cfg.devices.ir.link == "can" else IrSerialCodec(board)
+
+
+def _ir_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:
+    from fakes.irboard import IrBoardEmulator
+
+    link = knobs.ir_link or ("slcan" if cfg.devices.ir.link == "can" else "serial")
+    return IrBoardEmulator(
+        cfg.name,
+        ir_board_config(cfg),
+        link=link,
+        can_channel=f"hilnav-{cfg.name}",
+        seed=cfg.simulation.seed + 1,
+    )
+
+
+def _ir_attach(ir: Any, ports: dict[str, str]) -> Any:
+    if ir.link == "can" and "ir_can" in ports:
+        iface, _, chan = ports["ir_can"].partition(":")
+        return dataclasses.replace(ir, port=chan, can_interface=iface, can_channel=chan)
+    if ir.link == "serial" and "ir" in ports:
+        return dataclasses.replace(ir, port=ports["ir"])
+    return ir
+
+
+# -- gyro ----------------------------------------------------------------------------------
+def _gyro_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+    from drivers.cruzcore_driver import CruzCoreDriver
+
+    g = cfg.devices.gyro
+    return CruzCoreDriver(g.port, baud=g.baud, rate_hz=g.rate_hz, on_raw=on_raw)
+
+
+def _gyro_codec(cfg: RobotConfig) -> Any:
+    from drivers.cruzcore import CruzCoreCodec
+
+    return CruzCoreCodec()
+
+
+def _gyro_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:
+    from fakes.gyro import GyroEmulator
+    from fakes.world.gyro_model import GyroErrorModel
+
+    seed = cfg.simulation.seed + 2
+    return GyroEmulator(cfg.name, cfg.devices.gyro.rate_hz, GyroErrorModel(seed=seed))
+
+
+# -- gps -----------------------------------------------------------------------------------
+def _gps_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+    from drivers.nmea.driver import NmeaDriver
+    from drivers.nmea.local import Datum
+
+    g = cfg.devices.gps
+    return NmeaDriver(g.port, baud=g.baud, datum=Datum(*g.datum), on_raw=on_raw)
+
+
+def _gps_codec(cfg: RobotConfig) -> Any:
+    from drivers.nmea.codec import NmeaCodec
+    from drivers.nmea.local import Datum
+
+    return NmeaCodec(datum=Datum(*cfg.devices.gps.datum))
+
+
+def _gps_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:
+    from drivers.nmea.local import Datum
+    from fakes.gps import GpsEmulator, NmeaReplayEmulator
+    from fakes.world.gps_model import GpsErrorModel
+
+    if "gps" in knobs.replay:
+        return NmeaReplayEmulator(knobs.replay["gps"], fast=knobs.replay_fast)
+    return GpsEmulator(
+        cfg.name,
+        cfg.simulation.gps_rate_hz,
+        GpsErrorModel(seed=cfg.simulation.seed + 3),
+        datum=Datum(*cfg.devices.gps.datum),
+    )
+
+
+_TABLE = (
+    Device("arcos", "Pioneer 3-DX base (ARCOS)", (RobotOdometry, RobotInfo),
+           _arcos_driver, _arcos_codec, _arcos_emulator, _port("arcos")),
+    Device("ir", "Sharp GP2Y0A710K IR sensors behind an ADC board (serial or CAN)", (IrScan,),
+           _ir_driver, _ir_codec, _ir_emulator, _ir_attach),
+    Device("gyro", "CruzCore gyro", (GyroSample,),
+           _gyro_driver, _gyro_codec, _gyro_emulator, _port("gyro")),
+    Device("gps", "NMEA GPS receiver", (GpsFix,),
+           _gps_driver, _gps_codec, _gps_emulator, _port("gps")),
+)  # fmt: skip
+
+DEVICES: dict[str, Device] = {d.name: d for d in _TABLE}
+
+
+def enabled(cfg: RobotConfig, sim_only: bool = False) -> list[Device]:
+    """The devices a config enables (only those whose port is "sim" if ``sim_only``)."""
+    out = []
+    for d in _TABLE:
+        sec = d.section(cfg)
+        if sec.enabled and (not sim_only or sec.port == "sim"):
+            out.append(d)
+    return out
+
+
+def make_drivers(cfg: RobotConfig, on_raw: Callable[[str], RawHook]) -> dict[str, Any]:
+    """One driver per enabled device; ``on_raw(device)`` gives each its raw-bytes hook."""
+    return {d.name: d.driver(cfg, on_raw(d.name)) for d in enabled(cfg)}
+
+
+def make_codecs(cfg: RobotConfig) -> dict[str, Any]:
+    """One codec per device, to rebuild its messages from logged raw bytes."""
+    return {d.name: d.codec(cfg) for d in _TABLE}
+
+
+def with_fake_ports(cfg: RobotConfig, ports: dict[str, str]) -> RobotConfig:
+    """A copy with the "sim" ports replaced by the ones ``hilnav fake`` printed."""
+    changes = {}
+    for d in _TABLE:
+        sec = d.section(cfg)
+        if sec.port == "sim":
+            changes[d.name] = d.attach(sec, ports)
+    return dataclasses.replace(cfg, devices=dataclasses.replace(cfg.devices, **changes))
