@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hilnav.log.analyze import analyze, box_contains, interp_pose, wrap
+from hilnav.analysis.analyze import analyze, box_contains, interp_pose, wrap
 from msgs import Interval, PoseBox
 from tests.conftest import HILNAV, ROOT, hilnav_env
 from tests.logsynth import (

@@ -30,7 +30,7 @@ def default_out(log: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hilnav.log.analyze import analyze
+    from hilnav.analysis.analyze import analyze
 
     log = Path(args.log)
     if not log.is_file():
@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     files = []
     if not args.no_plots:
-        from hilnav.log.plots import write_plots
+        from hilnav.analysis.plots import write_plots
 
         files = [str(f) for f in write_plots(result, out)]
     summary = dict(result.summary)

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from hilnav.log.analyze import (  # noqa: E402
+from hilnav.analysis.analyze import (  # noqa: E402
     NS,
     Analysis,
     RobotAnalysis,

@@ -15,7 +15,7 @@ daemon runs. The new log holds:
   ``replay_*`` keys (input file name, config source, from_raw).
 
 A landmark data set (``hilnav import victoria-park``: car controls and landmark scans) is
-replayed through :class:`hilnav.log.landmark_pipeline.LandmarkSlamPipeline` (EKF-SLAM)
+replayed through :class:`hilnav.replay.landmark_slam.LandmarkSlamPipeline` (EKF-SLAM)
 instead (``pipeline="auto"`` picks it; "daemon" or "landmark-slam" force one).
 
 Deterministic: no wall clock reaches the output (log times come from the input, the
@@ -176,7 +176,7 @@ def choose_pipeline(
     """The pipeline class to replay with, and the config source to report.
 
     "daemon": hilnav.pipeline.Pipeline; "landmark-slam": EKF-SLAM over controls and scans
-    (hilnav.log.landmark_pipeline); "auto": landmark-slam for a landmark data set (its
+    (hilnav.replay.landmark_slam); "auto": landmark-slam for a landmark data set (its
     metadata names one, or the robot has controls or landmark scans and no odometry)."""
     if name not in PIPELINES:
         raise ValueError(f"pipeline {name!r}: choose one of {', '.join(PIPELINES)}")
@@ -191,7 +191,7 @@ def choose_pipeline(
             if kinds & {"control", "landmark_scan"} and "odometry" not in kinds:
                 name = "landmark-slam"
     if name == "landmark-slam":
-        from hilnav.log.landmark_pipeline import LandmarkSlamPipeline
+        from hilnav.replay.landmark_slam import LandmarkSlamPipeline
 
         return LandmarkSlamPipeline, "landmark-slam defaults (mapping.slam.service.SlamConfig)"
     from hilnav.pipeline import Pipeline

@@ -1,0 +1,1 @@
+"""``hilnav replay``: a log's device messages through the services again, deterministically."""
