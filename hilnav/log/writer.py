@@ -31,6 +31,7 @@ from mcap.writer import CompressionType, Writer
 
 import msgs
 from hilnav.log import foxglove
+from hilnav.log.foxglove_schemas import SCHEMAS
 
 COMPRESSIONS = {
     "zstd": CompressionType.ZSTD,
@@ -203,7 +204,7 @@ class LogWriter:
                 continue
             vcid = self._channels.get((vtopic, vschema, "json"))
             if vcid is None:
-                vcid = self._channel_id(vtopic, vschema, foxglove.SCHEMAS.get(vschema))
+                vcid = self._channel_id(vtopic, vschema, SCHEMAS.get(vschema))
             self._add(vcid, data, log_ns, pub_ns)
 
     def write_encoded(
