@@ -4,7 +4,8 @@ The recorded device messages of the log's robot (odometry, gyro, gps, ir, and th
 imported data sets' control and landmark_scan; or, with
 ``from_raw``, the raw device bytes decoded again by the drivers' codecs) go, in log-time
 order, through ``hilnav.pipeline.Pipeline(config).feed(topic, msg)`` — the very class the
-daemon runs. The new log holds:
+daemon runs (the pipeline and config are chosen in resolve.py, raw bytes decoded in
+devices.py). The new log holds:
 
 - every recorded message that is not a service output, unchanged (truth, cmd_vel, info,
   diagnostics, raw bytes, other robots' messages; records of unknown schemas are copied
@@ -25,7 +26,6 @@ same input and parameters give the same output bytes.
 
 from __future__ import annotations
 
-import tomllib
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -43,26 +43,18 @@ from hilnav.log.reader import (
     read_metadata,
 )
 from hilnav.log.writer import LogWriter
-from msgs import GpsFix, GyroSample, IrScan, RawBytes, RobotInfo, RobotOdometry
+from hilnav.replay.devices import DEVICE_TOPICS, INPUT_TOPICS, OUTPUT_TOPICS, RawDecoders
+from hilnav.replay.resolve import choose_pipeline, guess_robot, message_total, resolve_config
+from msgs import RawBytes
 
-# Device messages and the topics they are logged on (as the daemon does).
-DEVICE_TOPICS: dict[type, str] = {
-    RobotOdometry: "odometry",
-    GyroSample: "gyro",
-    GpsFix: "gps",
-    IrScan: "ir",
-    RobotInfo: "info",
-}
-INPUT_TOPICS = ("odometry", "gyro", "gps", "ir", "control", "landmark_scan")
-# What the services produce: dropped from the input, produced again by the pipeline.
-OUTPUT_TOPICS = frozenset(
-    {"heading", "pose", "pose_box", "map", "association", "landmarks", "slam_pose"}
-)
 MAX_ERRORS = 20
+Outputs = list[tuple[str, Any]]
 
 
 @dataclass
 class ReplayReport:
+    """What a replay did: records read, messages fed and produced per topic, errors."""
+
     input: str
     output: str
     robot: str
@@ -97,119 +89,6 @@ class ReplayReport:
         }
 
 
-def guess_robot(path: str | Path, meta: dict[str, str]) -> str:
-    """The log's robot: the metadata's, else the robot with the most device messages."""
-    if meta.get("robot"):
-        return meta["robot"]
-    counts: Counter = Counter()
-    for r in iter_raw(path):
-        robot, kind = split_topic(r.topic)
-        if robot and kind in INPUT_TOPICS:
-            counts[robot] += 1
-    if not counts:
-        raise ValueError("no device messages (odometry, gyro, gps, ir) in this log")
-    return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))[0][0]
-
-
-def resolve_config(config_path: str | None, meta: dict[str, str]) -> tuple[Any, str]:
-    """The robot config: --config, else the TOML text or file recorded in the log, else the
-    embedded defaults. Returns (config, where it came from)."""
-    from hilnav.config import load_config
-
-    if config_path:
-        return load_config(config_path), config_path
-    text = meta.get("config_toml")
-    if text:
-        from hilnav.config import parse_config
-
-        return parse_config(tomllib.loads(text), source="log metadata"), "log metadata"
-    recorded = meta.get("config", "")
-    if recorded and not recorded.startswith("<") and Path(recorded).is_file():
-        return load_config(recorded), recorded
-    return load_config(None), "<defaults>"
-
-
-class RawDecoders:
-    """The drivers' codecs, one per device, rebuilding device messages from raw bytes."""
-
-    def __init__(self, config: Any) -> None:
-        from drivers.arcos.codec import ArcosCodec
-        from drivers.cruzcore import CruzCoreCodec
-        from drivers.irboard.codec import IrCanCodec, IrSerialCodec
-        from drivers.nmea.codec import NmeaCodec
-        from drivers.nmea.local import Datum
-        from hilnav.config import ir_board_config
-
-        d = config.devices
-        ir = d.ir
-        board = ir_board_config(config)
-        self.ir_can = ir.link == "can"
-        self.codecs: dict[str, Any] = {
-            "arcos": ArcosCodec(),
-            "gyro": CruzCoreCodec(),
-            "gps": NmeaCodec(datum=Datum(*d.gps.datum)),
-            "ir": IrCanCodec(board) if self.ir_can else IrSerialCodec(board),
-        }
-
-    def feed(self, raw: RawBytes) -> list[Any]:
-        if raw.direction != "rx":
-            return []
-        codec = self.codecs.get(raw.device)
-        if codec is None:
-            return []
-        if raw.device == "ir" and self.ir_can:
-            # The CAN driver logs each frame as 4 bytes of arbitration id + the data.
-            if len(raw.data) < 4:
-                return []
-            arb = int.from_bytes(raw.data[:4], "big")
-            scan = codec.feed_frame(arb, raw.data[4:], raw.stamp_ns, is_extended=arb > 0x7FF)
-            return [] if scan is None else [scan]
-        return [m for m in codec.feed(raw.data, raw.stamp_ns) if type(m) in DEVICE_TOPICS]
-
-
-PIPELINES = ("auto", "daemon", "landmark-slam")
-
-
-def choose_pipeline(
-    src: Path, robot: str, meta: dict[str, str], name: str, source: str
-) -> tuple[Callable[[Any], Any], str]:
-    """The pipeline class to replay with, and the config source to report.
-
-    "daemon": hilnav.pipeline.Pipeline; "landmark-slam": EKF-SLAM over controls and scans
-    (hilnav.replay.landmark_slam); "auto": landmark-slam for a landmark data set (its
-    metadata names one, or the robot has controls or landmark scans and no odometry)."""
-    if name not in PIPELINES:
-        raise ValueError(f"pipeline {name!r}: choose one of {', '.join(PIPELINES)}")
-    if name == "auto":
-        name = "daemon"
-        if meta.get("dataset"):
-            name = "landmark-slam"
-        else:
-            kinds = {
-                split_topic(r.topic)[1] for r in iter_raw(src) if split_topic(r.topic)[0] == robot
-            }
-            if kinds & {"control", "landmark_scan"} and "odometry" not in kinds:
-                name = "landmark-slam"
-    if name == "landmark-slam":
-        from hilnav.replay.landmark_slam import LandmarkSlamPipeline
-
-        return LandmarkSlamPipeline, "landmark-slam defaults (mapping.slam.service.SlamConfig)"
-    from hilnav.pipeline import Pipeline
-
-    return Pipeline, source
-
-
-def _total(path: Path) -> int | None:
-    from mcap.reader import make_reader
-
-    try:
-        with open(path, "rb") as f:
-            s = make_reader(f).get_summary()
-        return s.statistics.message_count if s and s.statistics else None
-    except Exception:  # noqa: BLE001 - a truncated log: no total, the bar still counts
-        return None
-
-
 def replay(
     src: str | Path,
     dst: str | Path,
@@ -236,82 +115,125 @@ def replay(
     pipe = pipeline_factory(config)
     decoders = RawDecoders(config) if from_raw else None
     rep = ReplayReport(str(src), str(dst), robot, source, from_raw)
+    out_meta = _out_metadata(meta, robot, src.name, source, from_raw)
+    stats = ReadStats()
+    from tqdm import tqdm
+
+    total = message_total(src)
+    bar = tqdm(total=total, unit="msg", desc="replay", disable=not progress, mininterval=0.25)
+    with LogWriter(dst, compression=compression, metadata=out_meta, wall_clock=False) as w:
+        router = _Router(robot, pipe, decoders, w, rep, stats)
+        for r in iter_raw(src, stats=stats):
+            rep.records += 1
+            bar.update(1)
+            router.record(r)
+    bar.close()
+    rep.read = {k: v for k, v in stats.as_dict().items() if k != "errors"}
+    return rep
+
+
+def _out_metadata(
+    meta: dict[str, str], robot: str, src_name: str, source: str, from_raw: bool
+) -> dict[str, str]:
+    """The input's "hilnav" metadata plus the robot and the ``replay_*`` keys."""
     out_meta = dict(sorted(meta.items()))
     out_meta.update(
         {
             "robot": robot,
-            "replay_of": src.name,
+            "replay_of": src_name,
             "replay_config": source,
             "replay_from_raw": str(from_raw).lower(),
         }
     )
-    stats = ReadStats()
-    types = message_types()
-    from tqdm import tqdm
+    return out_meta
 
-    bar = tqdm(total=_total(src), unit="msg", desc="replay", disable=not progress, mininterval=0.25)
-    with LogWriter(dst, compression=compression, metadata=out_meta, wall_clock=False) as w:
 
-        def emit(outs: list[tuple[str, Any]], log_ns: int) -> None:
-            for t, m in outs:
-                w.write(f"/{robot}/{t}", m, log_ns, _stamp(m, log_ns))
-                rep.outputs[t] += 1
+class _Router:
+    """Each input record's way: dropped, copied, decoded again from raw, or fed to the pipeline."""
 
-        def run(fn: Callable[[], list[tuple[str, Any]]], what: str) -> list[tuple[str, Any]]:
-            try:
-                return list(fn())
-            except Exception as exc:  # noqa: BLE001 - one bad message must not end the replay
-                rep.pipeline_errors += 1
-                if len(rep.errors) < MAX_ERRORS:
-                    rep.errors.append(f"{what}: {exc!r}")
-                return []
+    def __init__(
+        self,
+        robot: str,
+        pipe: Any,
+        decoders: RawDecoders | None,
+        writer: LogWriter,
+        rep: ReplayReport,
+        stats: ReadStats,
+    ) -> None:
+        self.robot = robot
+        self.pipe = pipe
+        self.decoders = decoders
+        self.w = writer
+        self.rep = rep
+        self.stats = stats
+        self.types = message_types()
 
-        for r in iter_raw(src, stats=stats):
-            rep.records += 1
-            bar.update(1)
-            if is_view(r.schema_name):
-                continue  # regenerated by the writer
-            who, kind = split_topic(r.topic)
-            if who == robot and kind in OUTPUT_TOPICS:
-                rep.dropped_outputs += 1
-                continue
-            if who == robot and from_raw and kind in DEVICE_TOPICS.values():
-                continue  # rebuilt from the raw bytes below
-            lm = decode_record(r, stats, types)
-            if lm is None:
-                _copy_encoded(w, r)
-                rep.passed += 1
-                continue
-            msg = lm.msg
-            w.write(r.topic, msg, r.log_time_ns, r.publish_time_ns)
-            if who != robot:
-                rep.passed += 1
-                feed_other = getattr(pipe, "feed_other", None)
-                if feed_other is not None:
-                    outs = run(lambda f=feed_other, who=who, kind=kind, msg=msg: f(who, kind, msg),
-                               f"{r.topic} @ {r.log_time_ns}")  # fmt: skip
-                    emit(outs, r.log_time_ns)
-                continue
-            if decoders is not None and isinstance(msg, RawBytes):
-                for dm in decoders.feed(msg):
-                    topic = DEVICE_TOPICS[type(dm)]
-                    rep.decoded_from_raw[topic] += 1
-                    w.write(f"/{robot}/{topic}", dm, r.log_time_ns, _stamp(dm, r.log_time_ns))
-                    if topic in INPUT_TOPICS:
-                        rep.fed[topic] += 1
-                        emit(run(lambda t=topic, m=dm: pipe.feed(t, m), f"{topic} from raw"),
-                             r.log_time_ns)  # fmt: skip
-                rep.passed += 1
-                continue
-            if kind in INPUT_TOPICS:
-                rep.fed[kind] += 1
-                outs = run(lambda k=kind, m=msg: pipe.feed(k, m), f"{r.topic} @ {r.log_time_ns}")
-                emit(outs, r.log_time_ns)
-            else:
-                rep.passed += 1
-    bar.close()
-    rep.read = {k: v for k, v in stats.as_dict().items() if k != "errors"}
-    return rep
+    def record(self, r: RawRecord) -> None:
+        """Route one input record (see the module docstring for what the output holds)."""
+        rep = self.rep
+        if is_view(r.schema_name):
+            return  # regenerated by the writer
+        who, kind = split_topic(r.topic)
+        mine = who == self.robot
+        if mine and kind in OUTPUT_TOPICS:
+            rep.dropped_outputs += 1
+            return
+        if mine and self.decoders is not None and kind in DEVICE_TOPICS.values():
+            return  # rebuilt from the raw bytes (_from_raw)
+        lm = decode_record(r, self.stats, self.types)
+        if lm is None:
+            _copy_encoded(self.w, r)
+            rep.passed += 1
+            return
+        msg = lm.msg
+        self.w.write(r.topic, msg, r.log_time_ns, r.publish_time_ns)
+        if not mine:
+            rep.passed += 1
+            self._other_robot(r, who, kind, msg)
+        elif self.decoders is not None and isinstance(msg, RawBytes):
+            self._from_raw(r, msg)
+            rep.passed += 1
+        elif kind in INPUT_TOPICS:
+            self._feed(kind, msg, r.log_time_ns, f"{r.topic} @ {r.log_time_ns}")
+        else:
+            rep.passed += 1
+
+    def _other_robot(self, r: RawRecord, who: str, kind: str, msg: Any) -> None:
+        """Another robot's message goes to the pipeline's ``feed_other`` when it has one."""
+        feed_other = getattr(self.pipe, "feed_other", None)
+        if feed_other is not None:
+            what = f"{r.topic} @ {r.log_time_ns}"
+            self._emit(self._guarded(lambda: feed_other(who, kind, msg), what), r.log_time_ns)
+
+    def _from_raw(self, r: RawRecord, raw: RawBytes) -> None:
+        """Device messages decoded again from raw bytes: logged, and fed when they are inputs."""
+        assert self.decoders is not None
+        for dm in self.decoders.feed(raw):
+            topic = DEVICE_TOPICS[type(dm)]
+            self.rep.decoded_from_raw[topic] += 1
+            self.w.write(f"/{self.robot}/{topic}", dm, r.log_time_ns, _stamp(dm, r.log_time_ns))
+            if topic in INPUT_TOPICS:
+                self._feed(topic, dm, r.log_time_ns, f"{topic} from raw")
+
+    def _feed(self, topic: str, msg: Any, log_ns: int, what: str) -> None:
+        self.rep.fed[topic] += 1
+        self._emit(self._guarded(lambda: self.pipe.feed(topic, msg), what), log_ns)
+
+    def _emit(self, outs: Outputs, log_ns: int) -> None:
+        """The pipeline's outputs, logged at the log time of the input that caused them."""
+        for t, m in outs:
+            self.w.write(f"/{self.robot}/{t}", m, log_ns, _stamp(m, log_ns))
+            self.rep.outputs[t] += 1
+
+    def _guarded(self, fn: Callable[[], Outputs], what: str) -> Outputs:
+        """``fn()``'s outputs; a failure is counted and reported, not raised."""
+        try:
+            return list(fn())
+        except Exception as exc:  # noqa: BLE001 - one bad message must not end the replay
+            self.rep.pipeline_errors += 1
+            if len(self.rep.errors) < MAX_ERRORS:
+                self.rep.errors.append(f"{what}: {exc!r}")
+            return []
 
 
 def _stamp(msg: Any, default: int) -> int:
