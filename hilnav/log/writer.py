@@ -48,6 +48,15 @@ def _dumps(obj: Any) -> bytes:
     return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode("utf-8")
 
 
+def _times(topic: str, log_time_ns: int, publish_time_ns: int | None) -> tuple[int, int]:
+    """(log, publish) times as ints; publish defaults to log; ValueError if not a uint64."""
+    log_ns = int(log_time_ns)
+    pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
+    if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
+        raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
+    return log_ns, pub_ns
+
+
 class LogWriter:
     """Write hilnav messages to one MCAP file (context manager).
 
@@ -177,10 +186,7 @@ class LogWriter:
         cls = type(msg)
         name = msgs.schema_name(cls)
         data = msgs.encode(msg)
-        log_ns = int(log_time_ns)
-        pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
-        if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
-            raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
+        log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)
         with self._lock:
             self._check_open()
             cid = self._channels.get((topic, name, "json"))
@@ -223,10 +229,7 @@ class LogWriter:
 
         ``schema`` is a JSON Schema (dict), the schema record's bytes (with
         ``schema_encoding``), or None for a schema-less channel."""
-        log_ns = int(log_time_ns)
-        pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
-        if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
-            raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
+        log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)
         with self._lock:
             self._check_open()
             cid = self._channel_id(topic, schema_name, schema, schema_encoding, message_encoding)
