@@ -59,6 +59,7 @@ def rigid_fit(p: np.ndarray, q: np.ndarray) -> tuple[float, float, float]:
 def apply_fit(
     fit: tuple[float, float, float], x: np.ndarray, y: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
+    """Points (x, y) moved by a rigid fit (dx, dy, dtheta) of :func:`rigid_fit`."""
     dx, dy, th = fit
     c, s = math.cos(th), math.sin(th)
     return c * x - s * y + dx, s * x + c * y + dy
