@@ -8,8 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from hilnav.log.analyze import analyze, box_contains, interp_pose, wrap
-from msgs import Interval, PoseBox
+from hilnav.analysis.analyze import analyze
+from hilnav.analysis.containment import box_contains
+from hilnav.analysis.geometry import interp_pose
+from hilnav.analysis.report import digest, summary_json
+from msgs import Interval, PoseBox, wrap_angle
 from tests.conftest import HILNAV, ROOT, hilnav_env
 from tests.logsynth import (
     HEADING_DRIFT_DEG_PER_M,
@@ -27,46 +30,49 @@ def synth(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
 
 def test_path_errors_and_drift_per_metre(synth: tuple[Path, dict]) -> None:
     path, exp = synth
-    s = analyze(path).summary["robots"]["r1"]
-    assert s["reference"] == "truth"
-    assert s["reference_distance_m"] == pytest.approx(exp["distance_m"], rel=1e-6)
-    pose = s["paths"]["pose"]
-    assert pose["position_error_m"]["mean"] == pytest.approx(POSE_OFFSET_M, abs=1e-6)
-    assert pose["heading_error_deg"]["max"] == pytest.approx(0.0, abs=1e-6)
-    odo = s["paths"]["odometry"]["heading_drift"]
-    assert odo["final_deg_per_m"] == pytest.approx(ODO_DRIFT_DEG_PER_M, rel=0.01)
-    assert odo["slope_deg_per_m"] == pytest.approx(ODO_DRIFT_DEG_PER_M, rel=0.03)
-    head = s["paths"]["heading"]["heading_drift"]
-    assert head["final_deg_per_m"] == pytest.approx(HEADING_DRIFT_DEG_PER_M, rel=0.01)
+    ra = analyze(path).robots["r1"]
+    assert ra.reference == "truth"
+    assert ra.reference_distance_m == pytest.approx(exp["distance_m"], rel=1e-6)
+    pose = ra.paths["pose"]
+    assert pose.position.error_m.mean == pytest.approx(POSE_OFFSET_M, abs=1e-6)
+    assert pose.heading.error_deg.max == pytest.approx(0.0, abs=1e-6)
+    odo = ra.paths["odometry"].heading.drift
+    assert odo.final_deg_per_m == pytest.approx(ODO_DRIFT_DEG_PER_M, rel=0.01)
+    assert odo.slope_deg_per_m == pytest.approx(ODO_DRIFT_DEG_PER_M, rel=0.03)
+    head = ra.paths["heading"].heading.drift
+    assert head.final_deg_per_m == pytest.approx(HEADING_DRIFT_DEG_PER_M, rel=0.01)
     # the heading filter's positions are truth shifted to start at 0: aligned, ~no error
-    assert s["paths"]["heading"]["position_error_m"]["max"] < 0.02
+    assert ra.paths["heading"].position.error_m.max < 0.02
     # the drifting odometry wanders off: its position error grows
-    assert s["paths"]["odometry"]["position_error_m"]["final"] > 0.3
+    assert ra.paths["odometry"].position.error_m.final > 0.3
 
 
 def test_containment_map_and_diagnostics(synth: tuple[Path, dict]) -> None:
     path, exp = synth
-    s = analyze(path).summary["robots"]["r1"]
-    cp = s["cp_boxes"]
-    assert cp["boxes"] == exp["boxes"] and cp["violations"] == exp["bad_boxes"]
-    assert cp["contained_fraction"] == pytest.approx(1 - exp["bad_boxes"] / exp["boxes"])
-    assert cp["area_m2"]["median"] == pytest.approx(0.16)
-    assert s["ekf_3sigma"]["pose"]["contained_fraction"] == pytest.approx(
-        exp["ekf_contained"], abs=0.01
-    )
-    assert s["map"]["plan"] == "office"
-    assert s["map"]["match_ratio"] == pytest.approx(exp["match_ratio"], abs=1e-6)
-    d = s["diagnostics"]["arcos"]
-    assert d["bad_checksums"] == 3 and d["connected_fraction"] == 1.0
+    ra = analyze(path).robots["r1"]
+    cp = ra.cp_boxes
+    assert cp.boxes == exp["boxes"] and cp.containment.violations == exp["bad_boxes"]
+    frac = 1 - exp["bad_boxes"] / exp["boxes"]
+    assert cp.containment.contained_fraction == pytest.approx(frac)
+    assert cp.median_area_m2 == pytest.approx(0.16)
+    assert ra.ekf_3sigma["pose"].contained_fraction == pytest.approx(exp["ekf_contained"], abs=0.01)
+    assert ra.map.plan == "office"
+    assert ra.map.match_ratio == pytest.approx(exp["match_ratio"], abs=1e-6)
+    d = ra.diagnostics["arcos"]
+    assert d.bad_checksums == 3 and d.connected_fraction == 1.0
 
 
 def test_without_truth_the_gps_is_the_reference(tmp_path: Path) -> None:
     path = tmp_path / "nogt.mcap"
     write_synthetic_log(path, with_truth=False, with_map=False)
-    s = analyze(path).summary["robots"]["r1"]
-    assert s["reference"] == "gps"
-    err = s["paths"]["pose"]["position_error_m"]
-    assert 0.1 < err["mean"] < 1.5  # GPS noise sigma 0.5 m per axis
+    ra = analyze(path).robots["r1"]
+    assert ra.reference == "gps"
+    err = ra.paths["pose"].position.error_m
+    assert 0.1 < err.mean < 1.5  # GPS noise sigma 0.5 m per axis
+    assert ra.paths["pose"].heading is None and ra.cp_boxes is not None
+    assert ra.cp_boxes.containment is None and ra.map is None
+    # and the JSON summary leaves out what the log does not allow
+    s = summary_json(analyze(path))["robots"]["r1"]
     assert "heading_error_deg" not in s["paths"]["pose"] and "cp_boxes" in s
     assert "contained_fraction" not in s["cp_boxes"] and "map" not in s
 
@@ -76,9 +82,9 @@ def test_truncated_log_is_analysed_up_to_its_end(synth: tuple[Path, dict], tmp_p
     cut = tmp_path / "cut.mcap"
     data = path.read_bytes()
     cut.write_bytes(data[: len(data) // 2])
-    a = analyze(cut).summary
-    assert a["read"]["truncated"] is True
-    assert "r1" in a["robots"]
+    a = analyze(cut)
+    assert a.read.truncated is True
+    assert "r1" in a.robots
 
 
 def test_box_containment_wraps_theta() -> None:
@@ -98,7 +104,7 @@ def test_interp_heading_across_the_wrap() -> None:
         t, np.zeros(2), np.zeros(2), np.array([3.1, -3.1]), np.array([5, 20])
     )
     assert ok.tolist() == [True, False]
-    assert abs(wrap(th[0] - np.pi)) < 1e-9  # halfway between 3.1 and -3.1 is pi, not 0
+    assert abs(wrap_angle(th[0] - np.pi)) < 1e-9  # halfway between 3.1 and -3.1 is pi, not 0
 
 
 def test_cli_writes_plots_and_summary(synth: tuple[Path, dict], tmp_path: Path) -> None:
@@ -123,6 +129,19 @@ def test_cli_writes_plots_and_summary(synth: tuple[Path, dict], tmp_path: Path) 
     assert saved["robots"]["r1"]["map"]["match_ratio"] == pytest.approx(
         exp["match_ratio"], abs=1e-6
     )
+
+
+def test_digest_has_the_figures_of_the_summary(synth: tuple[Path, dict]) -> None:
+    path, exp = synth
+    a = analyze(path)
+    s = summary_json(a)["robots"]["r1"]
+    lines = digest(a)
+    pose = s["paths"]["pose"]["position_error_m"]
+    assert lines[0].startswith(f"  r1 pose     path error mean {pose['mean']:.3f} m")
+    assert [line.split()[1] for line in lines] == ["pose", "heading", "odometry", "map", "CP"]
+    assert f"match ratio {exp['match_ratio']:.3f} against the office plan" in lines[3]
+    frac = 100 * s["cp_boxes"]["contained_fraction"]
+    assert lines[4] == f"  r1 CP boxes contain the truth {frac:.1f} % (median area 0.2 m2)"
 
 
 def test_cli_missing_file_is_a_clear_error(tmp_path: Path) -> None:
@@ -163,12 +182,12 @@ def _rotated_run(path: Path, with_truth: bool) -> None:
 def test_rigid_fit_recovers_a_source_in_its_own_frame(tmp_path: Path, with_truth: bool) -> None:
     path = tmp_path / "rot.mcap"
     _rotated_run(path, with_truth)
-    s = analyze(path).summary["robots"]["r1"]
-    assert s["reference"] == ("truth" if with_truth else "gps")
-    pose = s["paths"]["pose"]
-    assert pose["position_error_m"]["mean"] > 3.0
-    assert pose["position_error_after_rigid_fit_m"]["max"] < 1e-6
-    assert pose["rigid_fit"]["dtheta_deg"] == pytest.approx(-30.0, abs=1e-6)
+    ra = analyze(path).robots["r1"]
+    assert ra.reference == ("truth" if with_truth else "gps")
+    pose = ra.paths["pose"].position
+    assert pose.error_m.mean > 3.0
+    assert pose.after_rigid_fit_m.max < 1e-6
+    assert pose.rigid_fit.dtheta_deg == pytest.approx(-30.0, abs=1e-6)
 
 
 def test_times_are_the_stamps_not_the_late_log_times(tmp_path: Path) -> None:
@@ -186,5 +205,5 @@ def test_times_are_the_stamps_not_the_late_log_times(tmp_path: Path) -> None:
             w.write("/r1/truth", GroundTruth(t, "r1", Pose2D(x, y, th)), t)
             late = t + (3_000_000_000 if 100 <= i < 130 else 1_000_000)
             w.write("/r1/pose", PoseEstimate(t, Pose2D(x, y, th), (0.0,) * 9), late)
-    err = analyze(path).summary["robots"]["r1"]["paths"]["pose"]["position_error_m"]
-    assert err["max"] < 1e-9
+    err = analyze(path).robots["r1"].paths["pose"].position.error_m
+    assert err.max < 1e-9

@@ -13,8 +13,8 @@ from mcap.reader import make_reader
 
 from drivers.cruzcore import encode_packet
 from hilnav.log.reader import ReadStats, read_messages, read_metadata
-from hilnav.log.replay import replay
 from hilnav.log.writer import LogWriter
+from hilnav.replay.replayer import replay
 from msgs import (
     GroundTruth,
     GyroSample,
@@ -122,7 +122,7 @@ def test_replay_replaces_outputs_and_passes_the_rest(tmp_path: Path) -> None:
 
 
 def test_replay_from_raw_decodes_the_bytes_again(tmp_path: Path) -> None:
-    from hilnav.log import replay as replay_mod
+    from hilnav.replay import replayer as replay_mod
 
     src, dst = tmp_path / "in.mcap", tmp_path / "raw.mcap"
     gyros = _write_input(src, raw=True)

@@ -17,6 +17,7 @@ from mcap.reader import make_reader
 
 import msgs
 from hilnav.log import foxglove
+from hilnav.log.foxglove_schemas import SCHEMAS
 from hilnav.log.reader import ReadStats, ScanResult, read_messages, read_metadata, scan_records
 from hilnav.log.recover import recover
 from hilnav.log.writer import LogWriter
@@ -135,11 +136,11 @@ def test_views_validate_against_their_foxglove_schemas() -> None:
     seen = set()
     for topic, m in inputs:
         for _vtopic, schema, body in foxglove.views(topic, m, state):
-            js.validate(body, foxglove.SCHEMAS[schema])
+            js.validate(body, SCHEMAS[schema])
             json.dumps(body, allow_nan=False)
             assert body.get("timestamp", {"sec": 1}) != {"sec": 0, "nsec": 0}
             seen.add(schema)
-    assert seen == set(foxglove.SCHEMAS)
+    assert seen == set(SCHEMAS)
     assert foxglove.views("/r1/gps", GpsFix(t), state) == []  # no fix: no LocationFix
 
 
@@ -296,7 +297,7 @@ def test_landmark_map_view_is_a_scene_of_spheres() -> None:
 
     lm = LandmarkMap(T0, (1, 2), (1.0, -3.0), (2.0, 4.0), (0.04, 1.0), (0.0, 0.0), (0.01, 1.0))
     ((topic, schema, body),) = foxglove.views("/vp/landmarks", lm, foxglove.ViewState())
-    js.validate(body, foxglove.SCHEMAS[schema])
+    js.validate(body, SCHEMAS[schema])
     assert topic == "/vp/fox/landmarks" and schema == "foxglove.SceneUpdate"
     spheres = body["entities"][0]["spheres"]
     assert [(s["pose"]["position"]["x"], s["pose"]["position"]["y"]) for s in spheres] == [

@@ -30,7 +30,8 @@ def default_out(log: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hilnav.log.analyze import analyze
+    from hilnav.analysis.analyze import analyze
+    from hilnav.analysis.report import write_report
 
     log = Path(args.log)
     if not log.is_file():
@@ -40,15 +41,6 @@ def run(args: argparse.Namespace) -> int:
         result = analyze(log, plan=args.plan)
     except ValueError as exc:
         raise CliError(f"{log}: {exc}") from None
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    if not args.no_plots:
-        from hilnav.log.plots import write_plots
-
-        files = [str(f) for f in write_plots(result, out)]
-    summary = dict(result.summary)
-    summary["plots"] = files
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
-    summary["summary_json"] = str(out / "summary.json")
+    summary = write_report(result, out, plots=not args.no_plots)
     print(json.dumps(summary, sort_keys=True))
     return 0

@@ -9,19 +9,16 @@
    revisited), sending ``cmd_vel`` at 10 Hz like a joystick. The operator steers by what
    a person watching the robot sees: the simulator's ground truth (``truth``), or the
    daemon's pose estimate when there is no truth;
-3. stops the robot, stops the daemon with SIGTERM (log closed), and analyses the log:
-   ``hilnav analyze`` when that command is installed, else a short built-in summary (topic
-   counts, path error against the truth, the final map and the paths as PNG, JSON);
+3. stops the robot, stops the daemon with SIGTERM (log closed), and analyses the log as
+   ``hilnav analyze`` does (hilnav.analysis: PNGs and summary.json), printing a digest
+   of its figures (path errors and heading drift, map match ratio, CP box containment);
 4. prints where the MCAP, the PNGs and the summary are.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
-import json
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -159,15 +156,11 @@ def _start_daemon(out: Path, port: int, seed: int) -> tuple[subprocess.Popen, Pa
         f"[simulation]\nseed = {seed}\n"
     )
     log = out / "demo.mcap"
-    env = dict(os.environ)
-    root = str(Path(__file__).resolve().parents[2])
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH", "")) if p)
     proc = subprocess.Popen(
         [sys.executable, "-m", "hilnav", "run", "--config", str(cfg), "--log", str(log), "--quiet"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        env=env,
     )
     return proc, log
 
@@ -237,141 +230,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def analyse(log: Path, out: Path) -> Path:
-    """``hilnav analyze`` when installed, else the built-in summary; returns the JSON path."""
-    if importlib.util.find_spec("hilnav.commands.analyze") is not None:
-        r = subprocess.run(
-            [sys.executable, "-m", "hilnav", "analyze", str(log), "--out", str(out)],
-            capture_output=True,
-            text=True,
-        )
-        if r.returncode == 0 and (out / "summary.json").is_file():
-            _digest(json.loads((out / "summary.json").read_text()))
-            return out / "summary.json"
-        sys.stderr.write(r.stderr[-2000:])
-    return builtin_summary(log, out)
+    """Analyse the log as ``hilnav analyze`` does, print its digest; returns the JSON path."""
+    from hilnav.analysis.analyze import analyze
+    from hilnav.analysis.report import digest, write_report
 
-
-def _digest(summary: dict[str, Any]) -> None:
-    """A few figures of ``hilnav analyze``'s summary, one line each."""
-
-    def get(*keys: str) -> Any:
-        o: Any = summary
-        for k in keys:
-            if not isinstance(o, dict) or k not in o:
-                return None
-            o = o[k]
-        return o
-
-    for robot in sorted(get("robots") or {}):
-        r = ("robots", robot)
-        lines = []
-        for src in ("pose", "heading", "odometry"):
-            e = get(*r, "paths", src, "position_error_m")
-            d = get(*r, "paths", src, "heading_drift", "slope_deg_per_m")
-            if e:
-                lines.append(
-                    f"{src:8s} path error mean {e.get('mean', 0):.3f} m, final "
-                    f"{e.get('final', 0):.3f} m; heading drift {d or 0:.3f} deg/m"
-                )
-        m = get(*r, "map", "match_ratio")
-        if m is not None:
-            lines.append(f"map      match ratio {m:.3f} against the {get(*r, 'map', 'plan')} plan")
-        box = get(*r, "cp_boxes")
-        if isinstance(box, dict):
-            c, a = box.get("contained_fraction"), box.get("area_m2")
-            if c is not None:
-                med = a.get("median") if isinstance(a, dict) else a
-                lines.append(
-                    f"CP boxes contain the truth {100 * c:.1f} % (median area {med:.1f} m2)"
-                )
-        for line in lines:
-            print(f"  {robot} {line}")
-
-
-def builtin_summary(log: Path, out: Path) -> Path:
-    """Topic counts, estimated pose against the truth, final map and paths as PNG."""
-    import numpy as np
-    from mcap.reader import make_reader
-
-    import msgs
-    from hilnav.bus import topic_type
-
-    counts: dict[str, int] = {}
-    poses: list[tuple[int, float, float]] = []
-    truth: list[tuple[int, float, float]] = []
-    last_map = None
-    diags: dict[str, Any] = {}
-    with open(log, "rb") as f:
-        for schema, channel, message in make_reader(f).iter_messages():
-            counts[channel.topic] = counts.get(channel.topic, 0) + 1
-            parts = channel.topic.split("/", 2)
-            topic = parts[2] if len(parts) == 3 else ""
-            cls = topic_type(topic)
-            if cls is None or schema.name != msgs.schema_name(cls):
-                continue
-            if topic in ("pose", "truth", "map", "diagnostics"):
-                m = msgs.decode(cls, message.data)
-                if topic == "pose":
-                    poses.append((m.stamp_ns, m.pose.x, m.pose.y))
-                elif topic == "truth":
-                    truth.append((m.stamp_ns, m.pose.x, m.pose.y))
-                elif topic == "map":
-                    last_map = m
-                else:
-                    diags[m.device] = m
-    summary: dict[str, Any] = {"log": str(log), "topics": counts}
-    if poses and truth:
-        p = np.array(poses, dtype=float)
-        t = np.array(truth, dtype=float)
-        tx = np.interp(p[:, 0], t[:, 0], t[:, 1])
-        ty = np.interp(p[:, 0], t[:, 0], t[:, 2])
-        err = np.hypot(p[:, 1] - tx, p[:, 2] - ty)
-        travelled = float(np.sum(np.hypot(np.diff(t[:, 1]), np.diff(t[:, 2]))))
-        summary["path_error_m"] = {
-            "mean": round(float(err.mean()), 3),
-            "max": round(float(err.max()), 3),
-            "final": round(float(err[-1]), 3),
-        }
-        summary["distance_m"] = round(travelled, 2)
-    summary["diagnostics"] = {
-        k: {"frames_ok": v.frames_ok, "bad": v.bad_checksums, "reconnects": v.reconnects}
-        for k, v in diags.items()
-    }
-    _plots(out, poses, truth, last_map)
-    path = out / "summary.json"
-    path.write_text(json.dumps(summary, indent=2))
-    return path
-
-
-def _plots(out: Path, poses, truth, grid_msg) -> None:  # noqa: ANN001
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    fig, ax = plt.subplots(figsize=(7, 6))
-    if grid_msg is not None:
-        from mapping.export import from_grid_msg
-
-        cells = from_grid_msg(grid_msg).astype(float)
-        img = np.where(cells < 0, 0.5, 1.0 - cells / 100.0)
-        rows, cols = cells.shape
-        res = grid_msg.cell_size.x
-        x0, y0 = grid_msg.pose.position.x, grid_msg.pose.position.y
-        ax.imshow(img, cmap="gray", origin="lower", vmin=0, vmax=1,
-                  extent=(x0, x0 + cols * res, y0, y0 + rows * res))  # fmt: skip
-    if truth:
-        t = np.array(truth)
-        ax.plot(t[:, 1], t[:, 2], "g-", lw=1, label="truth")
-    if poses:
-        p = np.array(poses)
-        ax.plot(p[:, 1], p[:, 2], "r-", lw=1, label="estimate")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.legend(loc="upper right")
-    ax.set_title("hilnav demo: map, true and estimated path")
-    fig.tight_layout()
-    fig.savefig(out / "demo_map_path.png", dpi=90)
-    plt.close(fig)
+    try:
+        result = analyze(log)
+    except ValueError as exc:
+        raise CliError(f"{log}: {exc}") from None
+    summary = write_report(result, out)
+    for line in digest(result):
+        print(line)
+    return Path(summary["summary_json"])

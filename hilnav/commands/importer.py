@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_victoria_park(args: argparse.Namespace) -> int:
-    from hilnav.log.victoria_park import import_victoria_park
+    from hilnav.importers.victoria_park import import_victoria_park
 
     if args.duration is not None and args.duration <= 0:
         raise CliError("--duration must be > 0 seconds")

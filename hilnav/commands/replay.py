@@ -39,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hilnav.log.replay import replay
+    from hilnav.replay.replayer import replay
 
     log = Path(args.log)
     if not log.is_file():

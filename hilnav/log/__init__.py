@@ -1,1 +1,1 @@
-"""MCAP logs: writer (with Foxglove views), reader, info, recovery, replay and analysis."""
+"""MCAP logs: writer (with Foxglove views), reader, info and recovery of truncated files."""

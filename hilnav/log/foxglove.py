@@ -17,7 +17,7 @@ native message into zero or more such views, each ``(topic, schema_name, dict)``
 
 The map (``msgs.OccupancyGridMsg``) already *is* a ``foxglove.Grid`` and needs no view.
 map->odom needs the latest odometry pose: :class:`ViewState` keeps it (pure, no clock).
-:data:`SCHEMAS` holds the JSON Schemas written into the log for each view schema.
+The JSON Schemas of the view schemas are in :mod:`hilnav.log.foxglove_schemas`.
 """
 
 from __future__ import annotations
@@ -26,140 +26,21 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from msgs import GpsFix, GroundTruth, HeadingEstimate, Pose2D, PoseBox, PoseEstimate, RobotOdometry
+from msgs import (
+    GpsFix,
+    GroundTruth,
+    HeadingEstimate,
+    Pose2D,
+    PoseBox,
+    PoseEstimate,
+    RobotOdometry,
+    wrap_angle,
+)
 
 View = tuple[str, str, dict[str, Any]]
 
 TF_TOPIC = "/tf"
 VIEW_PREFIX = "fox"
-
-# ---------------------------------------------------------------------------------------
-# JSON Schemas of the Foxglove messages used here (field names and types as Foxglove's).
-_NUM = {"type": "number"}
-
-
-def _obj(title: str, props: dict[str, Any]) -> dict[str, Any]:
-    return {"title": title, "type": "object", "properties": props, "required": list(props)}
-
-
-_TIME = {
-    "type": "object",
-    "title": "time",
-    "properties": {
-        "sec": {"type": "integer", "minimum": 0},
-        "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999},
-    },
-}
-_DURATION = {
-    "type": "object",
-    "title": "duration",
-    "properties": {
-        "sec": {"type": "integer"},
-        "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999},
-    },
-}
-_VEC3 = _obj("foxglove.Vector3", {"x": _NUM, "y": _NUM, "z": _NUM})
-_QUAT = _obj("foxglove.Quaternion", {"x": _NUM, "y": _NUM, "z": _NUM, "w": _NUM})
-_POSE = _obj("foxglove.Pose", {"position": _VEC3, "orientation": _QUAT})
-_COLOR = _obj("foxglove.Color", {"r": _NUM, "g": _NUM, "b": _NUM, "a": _NUM})
-_KV = _obj("foxglove.KeyValuePair", {"key": {"type": "string"}, "value": {"type": "string"}})
-_STR = {"type": "string"}
-
-
-def _arr(items: dict[str, Any]) -> dict[str, Any]:
-    return {"type": "array", "items": items}
-
-
-_POSE_IN_FRAME = _obj("foxglove.PoseInFrame", {"timestamp": _TIME, "frame_id": _STR, "pose": _POSE})
-_FRAME_TRANSFORM = _obj(
-    "foxglove.FrameTransform",
-    {
-        "timestamp": _TIME,
-        "parent_frame_id": _STR,
-        "child_frame_id": _STR,
-        "translation": _VEC3,
-        "rotation": _QUAT,
-    },
-)
-_LOCATION_FIX = _obj(
-    "foxglove.LocationFix",
-    {
-        "timestamp": _TIME,
-        "frame_id": _STR,
-        "latitude": _NUM,
-        "longitude": _NUM,
-        "altitude": _NUM,
-        "position_covariance": {"type": "array", "items": _NUM, "minItems": 9, "maxItems": 9},
-        "position_covariance_type": {
-            "title": "foxglove.PositionCovarianceType",
-            "oneOf": [
-                {"title": "UNKNOWN", "const": 0},
-                {"title": "APPROXIMATED", "const": 1},
-                {"title": "DIAGONAL_KNOWN", "const": 2},
-                {"title": "KNOWN", "const": 3},
-            ],
-        },
-    },
-)
-_CUBE = _obj("foxglove.CubePrimitive", {"pose": _POSE, "size": _VEC3, "color": _COLOR})
-_SPHERE = _obj("foxglove.SpherePrimitive", {"pose": _POSE, "size": _VEC3, "color": _COLOR})
-_ARROW = _obj(
-    "foxglove.ArrowPrimitive",
-    {
-        "pose": _POSE,
-        "shaft_length": _NUM,
-        "shaft_diameter": _NUM,
-        "head_length": _NUM,
-        "head_diameter": _NUM,
-        "color": _COLOR,
-    },
-)
-_ENTITY = {
-    "title": "foxglove.SceneEntity",
-    "type": "object",
-    "properties": {
-        "timestamp": _TIME,
-        "frame_id": _STR,
-        "id": _STR,
-        "lifetime": _DURATION,
-        "frame_locked": {"type": "boolean"},
-        "metadata": _arr(_KV),
-        "arrows": _arr(_ARROW),
-        "cubes": _arr(_CUBE),
-        "spheres": _arr(_SPHERE),
-        "cylinders": _arr({"type": "object"}),
-        "lines": _arr({"type": "object"}),
-        "triangles": _arr({"type": "object"}),
-        "texts": _arr({"type": "object"}),
-        "models": _arr({"type": "object"}),
-    },
-}
-_DELETION = _obj(
-    "foxglove.SceneEntityDeletion",
-    {
-        "timestamp": _TIME,
-        "type": {
-            "title": "foxglove.SceneEntityDeletionType",
-            "oneOf": [{"title": "MATCHING_ID", "const": 0}, {"title": "ALL", "const": 1}],
-        },
-        "id": _STR,
-    },
-)
-_SCENE_UPDATE = {
-    "title": "foxglove.SceneUpdate",
-    "type": "object",
-    "properties": {"deletions": _arr(_DELETION), "entities": _arr(_ENTITY)},
-}
-
-SCHEMAS: dict[str, dict[str, Any]] = {
-    "foxglove.PoseInFrame": _POSE_IN_FRAME,
-    "foxglove.FrameTransform": _FRAME_TRANSFORM,
-    "foxglove.LocationFix": _LOCATION_FIX,
-    "foxglove.SceneUpdate": _SCENE_UPDATE,
-}
-
-# ---------------------------------------------------------------------------------------
-# Conversions.
 
 BOX_COLOR = {"r": 0.2, "g": 0.5, "b": 1.0, "a": 0.35}
 ARROW_COLOR = {"r": 0.1, "g": 0.3, "b": 0.9, "a": 0.9}
@@ -201,17 +82,12 @@ def frame_transform(stamp_ns: int, parent: str, child: str, p: Pose2D) -> dict[s
 def compose(a: Pose2D, b: Pose2D) -> Pose2D:
     """a ⊕ b: the pose b (expressed in a's frame) in a's parent frame."""
     c, s = math.cos(a.theta), math.sin(a.theta)
-    return Pose2D(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, _wrap(a.theta + b.theta))
+    return Pose2D(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, wrap_angle(a.theta + b.theta))
 
 
 def inverse(a: Pose2D) -> Pose2D:
     c, s = math.cos(a.theta), math.sin(a.theta)
-    return Pose2D(-c * a.x - s * a.y, s * a.x - c * a.y, _wrap(-a.theta))
-
-
-def _wrap(a: float) -> float:
-    w = math.remainder(a, 2.0 * math.pi)
-    return math.pi if w == -math.pi else w
+    return Pose2D(-c * a.x - s * a.y, s * a.x - c * a.y, wrap_angle(-a.theta))
 
 
 def location_fix(fix: GpsFix, frame: str = "gps") -> dict[str, Any] | None:

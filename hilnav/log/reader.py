@@ -42,7 +42,7 @@ from mcap.records import (
 from mcap.stream_reader import breakup_chunk
 
 import msgs
-from hilnav.log import foxglove
+from hilnav.log.foxglove_schemas import SCHEMAS
 
 MAGIC = b"\x89MCAP0\r\n"
 _HEAD = struct.Struct("<BQ")
@@ -99,7 +99,7 @@ def message_types() -> dict[str, type]:
 
 def is_view(schema_name: str) -> bool:
     """A Foxglove view written beside a native message (not decoded back)."""
-    return schema_name in foxglove.SCHEMAS
+    return schema_name in SCHEMAS
 
 
 # --------------------------------------------------------------------------------------

@@ -31,6 +31,7 @@ from mcap.writer import CompressionType, Writer
 
 import msgs
 from hilnav.log import foxglove
+from hilnav.log.foxglove_schemas import SCHEMAS
 
 COMPRESSIONS = {
     "zstd": CompressionType.ZSTD,
@@ -45,6 +46,15 @@ _U64 = 2**64
 
 def _dumps(obj: Any) -> bytes:
     return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+def _times(topic: str, log_time_ns: int, publish_time_ns: int | None) -> tuple[int, int]:
+    """(log, publish) times as ints; publish defaults to log; ValueError if not a uint64."""
+    log_ns = int(log_time_ns)
+    pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
+    if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
+        raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
+    return log_ns, pub_ns
 
 
 class LogWriter:
@@ -176,10 +186,7 @@ class LogWriter:
         cls = type(msg)
         name = msgs.schema_name(cls)
         data = msgs.encode(msg)
-        log_ns = int(log_time_ns)
-        pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
-        if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
-            raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
+        log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)
         with self._lock:
             self._check_open()
             cid = self._channels.get((topic, name, "json"))
@@ -203,7 +210,7 @@ class LogWriter:
                 continue
             vcid = self._channels.get((vtopic, vschema, "json"))
             if vcid is None:
-                vcid = self._channel_id(vtopic, vschema, foxglove.SCHEMAS.get(vschema))
+                vcid = self._channel_id(vtopic, vschema, SCHEMAS.get(vschema))
             self._add(vcid, data, log_ns, pub_ns)
 
     def write_encoded(
@@ -222,10 +229,7 @@ class LogWriter:
 
         ``schema`` is a JSON Schema (dict), the schema record's bytes (with
         ``schema_encoding``), or None for a schema-less channel."""
-        log_ns = int(log_time_ns)
-        pub_ns = log_ns if publish_time_ns is None else int(publish_time_ns)
-        if not (0 <= log_ns < _U64 and 0 <= pub_ns < _U64):
-            raise ValueError(f"{topic}: log/publish time {log_ns}/{pub_ns} is not a uint64")
+        log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)
         with self._lock:
             self._check_open()
             cid = self._channel_id(topic, schema_name, schema, schema_encoding, message_encoding)

@@ -12,14 +12,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
-from hilnav.log.analyze import (  # noqa: E402
-    NS,
-    Analysis,
-    RobotAnalysis,
-    apply_fit,
-    grid_of_msg,
-    load_plan,
-)
+from hilnav.analysis.geometry import apply_fit  # noqa: E402
+from hilnav.analysis.maps import grid_of_msg, load_plan  # noqa: E402
+from hilnav.analysis.result import Analysis, RobotAnalysis  # noqa: E402
+from hilnav.analysis.tracks import NS  # noqa: E402
 
 COLORS = {
     "truth": "black",
@@ -56,7 +52,7 @@ def _save(fig, path: Path) -> Path:  # noqa: ANN001
 
 
 def plot_path(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | None:
-    rl = ra.log
+    rl, errors, boxes = ra.series.log, ra.series.errors, ra.series.boxes
     if not rl.sources and len(rl.truth) == 0 and len(rl.gps) == 0:
         return None
     fig, ax = plt.subplots(figsize=(7, 6))
@@ -72,22 +68,22 @@ def plot_path(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | No
         if name == "gyro" or len(tr) == 0:
             continue
         label = name
-        if name in ra.errors:  # the (start-aligned) track, as the errors were computed
-            x, y = ra.errors[name].est_x, ra.errors[name].est_y
+        if name in errors:  # the (start-aligned) track, as the errors were computed
+            x, y = errors[name].est_x, errors[name].est_y
             if fitted:
-                x, y = apply_fit(ra.errors[name].fit, x, y)
+                x, y = apply_fit(errors[name].fit, x, y)
                 label += " (rigid fit)"
         else:
             _, x, y, _ = tr.arrays()
         ax.plot(x, y, color=_color(name), lw=1.2, label=label, zorder=3)
     if rl.landmarks is not None and len(rl.landmarks.xs):
         lx, ly = np.asarray(rl.landmarks.xs, float), np.asarray(rl.landmarks.ys, float)
-        if fitted and "pose" in ra.errors:
-            lx, ly = apply_fit(ra.errors["pose"].fit, lx, ly)
+        if fitted and "pose" in errors:
+            lx, ly = apply_fit(errors["pose"].fit, lx, ly)
         ax.scatter(lx, ly, marker="+", s=25, color="tab:olive", label="landmarks", zorder=5)
-    if ra.boxes is not None:
-        step = max(1, len(ra.boxes.boxes) // 40)
-        for b in ra.boxes.boxes[::step]:
+    if boxes is not None:
+        step = max(1, len(boxes.boxes) // 40)
+        for b in boxes.boxes[::step]:
             if b.x.empty or b.y.empty:
                 continue
             ax.add_patch(
@@ -104,7 +100,7 @@ def plot_path(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | No
 
 
 def plot_map(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | None:
-    msg = ra.log.last_map
+    msg = ra.series.log.last_map
     if msg is None:
         return None
     grid = grid_of_msg(msg)
@@ -116,11 +112,11 @@ def plot_map(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | Non
     fig, ax = plt.subplots(figsize=(7, 6))
     ax.imshow(img, origin="lower", extent=extent, cmap="gray", vmin=0.0, vmax=1.0, zorder=0)
     _plan_walls(ax, plan_name)
-    if len(ra.log.truth):
-        _, tx, ty, _ = ra.log.truth.arrays()
+    if len(ra.series.log.truth):
+        _, tx, ty, _ = ra.series.log.truth.arrays()
         ax.plot(tx, ty, color="tab:red", lw=1.0, label="truth path")
         ax.legend(loc="best", fontsize=8)
-    ratio = ra.summary.get("map", {}).get("match_ratio")
+    ratio = ra.map.match_ratio if ra.map is not None else None
     title = f"{ra.name}: occupancy grid"
     if ratio is not None:
         title += f" (match ratio {100 * ratio:.1f} % vs {plan_name})"
@@ -131,13 +127,13 @@ def plot_map(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | Non
 
 
 def plot_errors(ra: RobotAnalysis, path: Path) -> Path | None:
-    if not ra.errors:
+    if not ra.series.errors:
         return None
-    has_head = any(np.isfinite(e.head_err).any() for e in ra.errors.values())
+    has_head = any(np.isfinite(e.head_err).any() for e in ra.series.errors.values())
     n = 2 if has_head else 1
     fig, axes = plt.subplots(n, 1, figsize=(8, 3.2 * n), sharex=True, squeeze=False)
-    t0 = min(int(e.t[0]) for e in ra.errors.values())
-    for name, e in sorted(ra.errors.items()):
+    t0 = min(int(e.t[0]) for e in ra.series.errors.values())
+    for name, e in sorted(ra.series.errors.items()):
         ts = (e.t - t0) / NS
         if np.isfinite(e.pos_err).any():
             axes[0, 0].plot(ts, e.pos_err, color=_color(name), lw=1.0, label=name)
@@ -156,7 +152,7 @@ def plot_errors(ra: RobotAnalysis, path: Path) -> Path | None:
 
 
 def plot_boxes(ra: RobotAnalysis, path: Path) -> Path | None:
-    bs = ra.boxes
+    bs = ra.series.boxes
     if bs is None:
         return None
     fig, ax = plt.subplots(figsize=(8, 3.5))
@@ -169,7 +165,8 @@ def plot_boxes(ra: RobotAnalysis, path: Path) -> Path | None:
     ax.set_ylabel("area (m²)")
     ax.ticklabel_format(axis="y", useOffset=False)
     ax.set_ylim(bottom=0.0, top=max(float(np.max(bs.area)) * 1.1, 1e-3))
-    frac = ra.summary.get("cp_boxes", {}).get("contained_fraction")
+    box = ra.cp_boxes.containment if ra.cp_boxes is not None else None
+    frac = box.contained_fraction if box is not None else None
     title = f"{ra.name}: CP pose box areas"
     if frac is not None:
         title += f" (truth inside {100 * frac:.1f} %)"

@@ -1,0 +1,127 @@
+"""``hilnav analyze``: what a log allows to conclude, per robot, as a typed :class:`Analysis`.
+
+Per robot (topics ``/<robot>/<kind>``, read by tracks.py), against the reference — ``truth``
+(msgs.GroundTruth, fakes only) or, without truth, the GPS east/north fixes (position only):
+
+- path error and heading drift per metre of every pose source (errors.py);
+- map match ratio of the last map against the floor plan (maps.py);
+- CP box containment and areas, EKF 3-sigma containment (containment.py);
+- diagnostics summary per device (last counters, bad frames, reconnects, errors);
+- landmark maps and the robot's info, when logged.
+
+The JSON summary and the human digest are made from the result in report.py, the PNGs in
+plots.py.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from hilnav.analysis.containment import box_series, box_summary, ekf_containment
+from hilnav.analysis.errors import SourceErrors, source_errors, source_track
+from hilnav.analysis.geometry import path_length
+from hilnav.analysis.maps import map_summary
+from hilnav.analysis.result import (
+    Analysis,
+    DeviceSummary,
+    LandmarkSummary,
+    RobotAnalysis,
+    RobotSeries,
+)
+from hilnav.analysis.tracks import NS, RobotLog, Track, load
+from hilnav.log.reader import ReadStats, read_metadata
+from msgs import DeviceDiagnostics
+
+
+def diagnostics_summary(diags: dict[str, list[DeviceDiagnostics]]) -> dict[str, DeviceSummary]:
+    """Per device: the last counters, the connected fraction, the mean rate, the errors."""
+    out = {}
+    for dev in sorted(diags):
+        ds = diags[dev]
+        last = ds[-1]
+        rates = [d.rate_hz for d in ds if d.connected]
+        errors = sorted({d.last_error for d in ds if d.last_error})
+        out[dev] = DeviceSummary(
+            reports=len(ds),
+            connected_fraction=sum(d.connected for d in ds) / len(ds),
+            frames_ok=last.frames_ok,
+            bad_checksums=last.bad_checksums,
+            resyncs=last.resyncs,
+            bytes_skipped=last.bytes_skipped,
+            frames_lost=last.frames_lost,
+            reconnects=last.reconnects,
+            mean_rate_hz=float(np.mean(rates)) if rates else 0.0,
+            errors=errors[:5],
+        )
+    return out
+
+
+def reference_of(rl: RobotLog) -> tuple[Track, str, bool]:
+    """The robot's reference track, its name, and whether it has a heading."""
+    if len(rl.truth) >= 2:
+        return rl.truth, "truth", True
+    if len(rl.gps) >= 2:
+        return rl.gps, "gps", False
+    return Track(), "none", False
+
+
+def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
+    """Every figure the robot's messages allow (see the module docstring)."""
+    ref, ref_name, ref_heading = reference_of(rl)
+    errs: dict[str, SourceErrors] = {}
+    for name in sorted(rl.sources):
+        if name == "gyro" and not ref_heading:
+            continue
+        e = source_errors(name, rl.sources[name], ref, ref_heading)
+        if e is not None:
+            errs[name] = e
+    bs = box_series(rl)
+    ra = RobotAnalysis(
+        name=rl.name,
+        reference=ref_name,
+        topics=dict(sorted(rl.counts.items())),
+        series=RobotSeries(rl, errs, bs),
+        paths={name: source_track(name, e, ref_heading) for name, e in errs.items()},
+        cp_boxes=box_summary(bs) if bs is not None else None,
+        map=map_summary(rl, plan_name),
+        diagnostics=diagnostics_summary(rl.diagnostics),
+        info=rl.info,
+    )
+    if len(ref) >= 2:
+        _, rx, ry, _ = ref.arrays()
+        ra.reference_distance_m = float(path_length(rx, ry)[-1])
+    if ref_name == "truth":
+        for name, tr in sorted(rl.sources.items()):
+            c = ekf_containment(tr, ref)
+            if c is not None:
+                ra.ekf_3sigma[name] = c
+    if rl.landmarks is not None:
+        ra.landmarks = LandmarkSummary(maps_logged=rl.landmark_maps, count=len(rl.landmarks.xs))
+    return ra
+
+
+def analyze(path: str | Path, plan: str | None = None) -> Analysis:
+    """Analyse a log: the figures of each robot and the series for the plots.
+
+    ``plan`` overrides the floor plan named in the log's "hilnav" metadata."""
+    stats = ReadStats()
+    robots = load(path, stats)
+    meta = read_metadata(path).get("hilnav", {})
+    plan_name = plan or meta.get("plan") or None
+    result = Analysis(
+        log=str(path),
+        metadata=dict(sorted(meta.items())),
+        read=stats,
+        robots={name: analyze_robot(robots[name], plan_name) for name in sorted(robots)},
+        plan_name=plan_name,
+    )
+    all_t = [
+        tr.t for rl in robots.values() for tr in [rl.truth, rl.gps, *rl.sources.values()] if tr.t
+    ]
+    if all_t:
+        lo = min(min(t) for t in all_t)
+        hi = max(max(t) for t in all_t)
+        result.duration_s = (hi - lo) / NS
+    return result

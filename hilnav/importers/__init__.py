@@ -1,0 +1,1 @@
+"""``hilnav import``: public data sets written as hilnav MCAP logs."""
