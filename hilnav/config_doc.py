@@ -1,0 +1,151 @@
+"""The configuration reference (docs/configuration.md), generated from the code.
+
+Walks the :class:`hilnav.config.RobotConfig` dataclasses: one table per TOML section with
+every key's type, default, the check the loader applies, and the comment that
+``hilnav/default.toml`` writes on that key's line. ``hilnav config reference`` prints it;
+tests/test_docs.py checks that the committed docs/configuration.md equals it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+import re
+import typing
+from typing import Any
+
+from hilnav.config import RobotConfig, default_toml_path
+
+_SECTION = re.compile(r"^\[([A-Za-z_][\w.]*)\]\s*(?:#\s*(.*))?$")
+_KEY = re.compile(r"^\s*([A-Za-z_]\w*)\s*=[^#]*(?:#\s*(.*))?$")
+
+INTRO = """\
+One TOML file per robot. Every key is optional: a key left out keeps the default shown
+here, and a file with no keys at all runs a simulated Pioneer 3-DX with every sensor.
+`hilnav config example` prints the commented defaults (`hilnav/default.toml`) to start
+from; `hilnav config check FILE` validates a file and says what it will run. A mistake
+(TOML syntax, an unknown key, a wrong type, a value outside the *check* column) stops
+the loader with one message naming the key, the bad value and the fix, with a
+did-you-mean for a misspelt key.
+"""
+
+
+class TomlComments(typing.NamedTuple):
+    """The comments of a commented TOML file such as hilnav/default.toml."""
+
+    preamble: str  # the comment lines before the first key
+    keys: dict[tuple[str, str], str]  # (section, key) -> the comment on the key's line
+    headers: dict[str, str]  # section -> the comment on its [header] line
+    notes: dict[str, list[str]]  # section -> its comment-only lines
+
+
+def toml_comments(text: str) -> TomlComments:
+    """Collect the comments of ``text`` by section ("" = the top level)."""
+    c = TomlComments("", {}, {}, {})
+    preamble: list[str] = []
+    section, started = "", False
+    for line in text.splitlines():
+        if m := _SECTION.match(line):
+            section, started = m.group(1), True
+            c.headers[section] = (m.group(2) or "").strip()
+        elif line.lstrip().startswith("#"):
+            body = line.lstrip()[1:].strip()
+            (c.notes.setdefault(section, []) if started else preamble).append(body)
+        elif m := _KEY.match(line):
+            started = True
+            if m.group(2):
+                c.keys[(section, m.group(1))] = m.group(2).strip()
+    return c._replace(preamble="\n".join(preamble))
+
+
+def sections(cls: type = RobotConfig, prefix: str = "") -> list[tuple[str, type, list[Any]]]:
+    """(section name, dataclass, its non-table fields) of every TOML table, in file order."""
+    hints = typing.get_type_hints(cls)
+    own = [f for f in dataclasses.fields(cls) if not f.metadata.get("internal")]
+    leaves = [f for f in own if not dataclasses.is_dataclass(hints[f.name])]
+    out = [(prefix, cls, leaves)] if leaves else []
+    for f in own:
+        if dataclasses.is_dataclass(hints[f.name]):
+            out += sections(hints[f.name], f"{prefix}.{f.name}" if prefix else f.name)
+    return out
+
+
+def type_word(tp: Any) -> str:
+    """The TOML type of a field's annotation: string, number, [number, number], table..."""
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"list of {type_word(args[0])}"
+        return "[" + ", ".join(type_word(a) for a in args) + "]"
+    if origin is dict or tp is dict:
+        return "table"
+    return {bool: "boolean", int: "integer", float: "number", str: "string"}.get(tp, str(tp))
+
+
+def toml_value(v: Any) -> str:
+    """A default value as it would be written in the TOML file."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, tuple | list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"
+    return repr(v)
+
+
+def _default(f: dataclasses.Field) -> Any:
+    return f.default_factory() if f.default is dataclasses.MISSING else f.default  # type: ignore[misc]
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("<", "&lt;")
+
+
+def _describe(cls: type) -> str:
+    doc = inspect.getdoc(cls) or ""
+    if cls is RobotConfig or doc.startswith(cls.__name__ + "("):
+        return ""  # no docstring of its own (dataclass repr), or the top level
+    return " ".join(re.sub(r":\w+:`", "`", doc.replace("``", "`")).split())
+
+
+def reference() -> str:
+    """The whole configuration reference as Markdown."""
+    com = toml_comments(default_toml_path().read_text(encoding="utf-8"))
+    out = [
+        "# Configuration reference",
+        "",
+        "<!-- Generated by `hilnav config reference` from hilnav/config.py and"
+        " hilnav/default.toml: do not edit by hand (tests/test_docs.py checks it). -->",
+        "",
+        INTRO,
+        "The example file begins:",
+        "",
+        "```toml",
+        *(f"# {ln}".rstrip() for ln in com.preamble.splitlines()),
+        "```",
+    ]
+    for name, cls, fields in sections():
+        hints = typing.get_type_hints(cls)
+        out += ["", f"## [{name}]" if name else "## Top-level keys", ""]
+        if desc := _describe(cls):
+            out += [desc, ""]
+        if header := com.headers.get(name):
+            out += [f"In the example file: {header}.", ""]
+        out += ["| key | type | default | check | comment |", "|---|---|---|---|---|"]
+        for f in fields:
+            check = f.metadata.get("check", (None, ""))[1]
+            row = (
+                f"`{f.name}`",
+                type_word(hints[f.name]),
+                f"`{toml_value(_default(f))}`",
+                check,
+                com.keys.get((name, f.name), ""),
+            )
+            out.append("| " + " | ".join(_cell(c) for c in row) + " |")
+        if notes := com.notes.get(name):
+            out += ["", "Also in the example file:", "", "```toml"]
+            out += [f"# {ln}" for ln in notes] + ["```"]
+    return "\n".join(out) + "\n"
