@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import subprocess
 import tomllib
+from pathlib import Path
 
 from hilnav.config import default_toml_path
 from hilnav.config_doc import reference, toml_comments
@@ -56,12 +57,23 @@ def test_readme_keeps_the_two_quickstart_commands():
     assert 'python3 -m pip install -e ".[test]" && python3 -m pytest' in readme
 
 
+def _anchors(page: Path) -> set[str]:
+    """GitHub's anchors of a page's headings: lower case, punctuation dropped, - for spaces."""
+    text = re.sub(r"```.*?```", "", page.read_text(encoding="utf-8"), flags=re.S)
+    heads = re.findall(r"^#+ (.+)$", text, flags=re.M)
+    return {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-") for h in heads}
+
+
 def test_relative_links_of_the_docs_resolve():
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
     for page in pages:
-        text = page.read_text(encoding="utf-8")
+        text = re.sub(r"```.*?```", "", page.read_text(encoding="utf-8"), flags=re.S)
         for target in re.findall(r"\]\(([^)\s]+)\)", text):
-            if re.match(r"[a-z]+:", target) or target.startswith("#"):
-                continue  # a URL or an anchor in the same page
-            path = (page.parent / target.split("#", 1)[0]).resolve()
-            assert path.exists(), f"{page.relative_to(ROOT)}: broken link {target}"
+            if re.match(r"[a-z]+:", target):
+                continue  # a URL
+            file, _, anchor = target.partition("#")
+            path = (page.parent / file).resolve() if file else page
+            where = f"{page.relative_to(ROOT)}: broken link {target}"
+            assert path.exists(), where
+            if anchor and path.suffix == ".md":
+                assert anchor in _anchors(path), where
