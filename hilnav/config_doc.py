@@ -96,10 +96,6 @@ def toml_value(v: Any) -> str:
     return repr(v)
 
 
-def _default(f: dataclasses.Field) -> Any:
-    return f.default_factory() if f.default is dataclasses.MISSING else f.default  # type: ignore[misc]
-
-
 def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("<", "&lt;")
 
@@ -136,15 +132,11 @@ def reference() -> str:
             out += [f"In the example file: {header}.", ""]
         out += ["| key | type | default | check | comment |", "|---|---|---|---|---|"]
         for f in fields:
+            default = f.default_factory() if f.default is dataclasses.MISSING else f.default
             check = f.metadata.get("check", (None, ""))[1]
-            row = (
-                f"`{f.name}`",
-                type_word(hints[f.name]),
-                f"`{toml_value(_default(f))}`",
-                check,
-                com.keys.get((name, f.name), ""),
-            )
-            out.append("| " + " | ".join(_cell(c) for c in row) + " |")
+            row = (f"`{f.name}`", type_word(hints[f.name]), f"`{toml_value(default)}`", check)
+            comment = com.keys.get((name, f.name), "")
+            out.append("| " + " | ".join(_cell(c) for c in (*row, comment)) + " |")
         if notes := com.notes.get(name):
             out += ["", "Also in the example file:", "", "```toml"]
             out += [f"# {ln}" for ln in notes] + ["```"]
