@@ -1,4 +1,5 @@
-"""``hilnav config check FILE``: validate a robot config; ``hilnav config example``."""
+"""``hilnav config check FILE``: validate a robot config; ``hilnav config example``;
+``hilnav config reference``: the configuration reference as Markdown."""
 
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ from hilnav.errors import CliError
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "config",
-        help="check a robot config file, or print the example",
+        help="check a robot config file, or print the example or the reference",
         description="Robot configuration (TOML). 'check FILE' validates it and says what it "
-        "will run; 'example' prints the commented defaults to start from.",
+        "will run; 'example' prints the commented defaults to start from; 'reference' prints "
+        "every key with its type, default and check as Markdown (docs/configuration.md).",
     )
     csub = p.add_subparsers(dest="config_command", metavar="ACTION")
     c = csub.add_parser("check", help="validate FILE: one clear message if anything is wrong")
@@ -22,6 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.set_defaults(func=check)
     e = csub.add_parser("example", help="print the example config (the embedded defaults)")
     e.set_defaults(func=example)
+    r = csub.add_parser("reference", help="print the configuration reference (Markdown)")
+    r.set_defaults(func=reference)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
@@ -37,4 +41,11 @@ def check(args: argparse.Namespace) -> int:
 
 def example(args: argparse.Namespace) -> int:
     sys.stdout.write(default_toml_path().read_text(encoding="utf-8"))
+    return 0
+
+
+def reference(args: argparse.Namespace) -> int:
+    from hilnav.config_doc import reference as markdown
+
+    sys.stdout.write(markdown())
     return 0
