@@ -5,7 +5,9 @@ Like python-can's interface registry, a device is one :class:`Device` entry in
 :class:`hilnav.config.Devices`), the messages its driver yields (their topics are in
 :mod:`hilnav.topics`), and three factories from a :class:`~hilnav.config.RobotConfig`:
 
-- ``driver(cfg, on_raw)``: the driver the daemon and ``hilnav probe`` run;
+- ``driver(cfg, on_raw, **options)``: the driver the daemon and ``hilnav probe`` run
+  (``options``: driver settings a robot config does not hold, e.g. probe's
+  ``--no-reset``);
 - ``codec(cfg)``: the bytes -> messages codec ``hilnav replay`` rebuilds messages with
   from the logged raw bytes (``codec.feed(data, stamp_ns) -> [msg]``, one raw record at
   a time; the IR board on CAN logs one frame per record,
@@ -49,7 +51,7 @@ class Device:
     name: str
     doc: str
     messages: tuple[type, ...]
-    driver: Callable[[RobotConfig, RawHook], Any]
+    driver: Callable[..., Any]  # (cfg, on_raw, **driver options) -> driver
     codec: Callable[[RobotConfig], Any]
     emulator: Callable[[RobotConfig, FakeKnobs], Any]
     attach: Callable[[Any, dict[str, str]], Any]
@@ -66,11 +68,11 @@ def _port(key: str) -> Callable[[Any, dict[str, str]], Any]:
 
 
 # -- arcos -------------------------------------------------------------------------------
-def _arcos_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+def _arcos_driver(cfg: RobotConfig, on_raw: RawHook, **extra: Any) -> Any:
     from drivers.arcos.driver import ArcosDriver, ArcosOptions
 
     a = cfg.devices.arcos
-    return ArcosDriver(a.port, ArcosOptions(baud=a.baud), on_raw=on_raw)
+    return ArcosDriver(a.port, ArcosOptions(baud=a.baud), **{"on_raw": on_raw, **extra})
 
 
 def _arcos_codec(cfg: RobotConfig) -> Any:
@@ -88,15 +90,16 @@ def _arcos_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:
 
 
 # -- ir ------------------------------------------------------------------------------------
-def _ir_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+def _ir_driver(cfg: RobotConfig, on_raw: RawHook, **extra: Any) -> Any:
     from drivers.irboard.driver import IrCanDriver, IrSerialDriver
 
     ir = cfg.devices.ir
     board = ir_board_config(cfg)
     if ir.link == "can":
         chan = ir.can_channel or ir.port
-        return IrCanDriver(ir.can_interface, chan, board, bitrate=ir.can_bitrate, on_raw=on_raw)
-    return IrSerialDriver(ir.port, board, baud=ir.baud, on_raw=on_raw)
+        kw = {"bitrate": ir.can_bitrate, "on_raw": on_raw, **extra}
+        return IrCanDriver(ir.can_interface, chan, board, **kw)
+    return IrSerialDriver(ir.port, board, **{"baud": ir.baud, "on_raw": on_raw, **extra})
 
 
 def _ir_codec(cfg: RobotConfig) -> Any:
@@ -129,11 +132,13 @@ def _ir_attach(ir: Any, ports: dict[str, str]) -> Any:
 
 
 # -- gyro ----------------------------------------------------------------------------------
-def _gyro_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+def _gyro_driver(cfg: RobotConfig, on_raw: RawHook, **extra: Any) -> Any:
     from drivers.cruzcore_driver import CruzCoreDriver
 
     g = cfg.devices.gyro
-    return CruzCoreDriver(g.port, baud=g.baud, rate_hz=g.rate_hz, on_raw=on_raw)
+    return CruzCoreDriver(
+        g.port, **{"baud": g.baud, "rate_hz": g.rate_hz, "on_raw": on_raw, **extra}
+    )
 
 
 def _gyro_codec(cfg: RobotConfig) -> Any:
@@ -151,12 +156,13 @@ def _gyro_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:
 
 
 # -- gps -----------------------------------------------------------------------------------
-def _gps_driver(cfg: RobotConfig, on_raw: RawHook) -> Any:
+def _gps_driver(cfg: RobotConfig, on_raw: RawHook, **extra: Any) -> Any:
     from drivers.nmea.driver import NmeaDriver
     from drivers.nmea.local import Datum
 
     g = cfg.devices.gps
-    return NmeaDriver(g.port, baud=g.baud, datum=Datum(*g.datum), on_raw=on_raw)
+    kw = {"baud": g.baud, "datum": Datum(*g.datum), "on_raw": on_raw, **extra}
+    return NmeaDriver(g.port, **kw)
 
 
 def _gps_codec(cfg: RobotConfig) -> Any:

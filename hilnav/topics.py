@@ -8,7 +8,8 @@ topic ``/<robot>/<topic>``; the raw bytes of a device are ``raw/<device>``
 - ``source``: ``device`` (decoded by a driver), ``bus`` (arrives on Zenoh for this
   robot: commands), ``services`` (produced by the pipeline: replay drops these from its
   input and produces them again), ``daemon`` (health), ``sim`` (the simulated world:
-  ground truth) or ``dataset`` (imported data sets' inputs);
+  ground truth) or ``external`` (measured by a sensor hilnav has no driver for: simulated
+  in the fleet scenario, or imported from a data set);
 - ``service_input``: the pipeline takes it;
 - ``published``: the daemon puts it on Zenoh (the others are logged only);
 - ``peer``: the daemon takes it from the other fleet robots (cooperative localization).
@@ -83,11 +84,10 @@ _TABLE = (
     Topic("status", DaemonStatus, "daemon", "the daemon's loop, bus and motion gate, 1 Hz",
           published=True),
     Topic("truth", GroundTruth, "sim", "the simulated world's true pose"),
-    Topic("relative", RelativeMeasurement, "device", "range-bearing to another robot",
+    Topic("relative", RelativeMeasurement, "external", "range-bearing to another robot"),
+    Topic("control", VehicleControl, "external", "car-like vehicle control (speed, steering)",
           service_input=True),
-    Topic("control", VehicleControl, "dataset", "car-like vehicle control (speed, steering)",
-          service_input=True),
-    Topic("landmark_scan", LandmarkScan, "dataset", "range-bearing landmark detections",
+    Topic("landmark_scan", LandmarkScan, "external", "range-bearing landmark detections",
           service_input=True),
 )  # fmt: skip
 

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from hilnav.log.foxglove import split_topic
 from hilnav.log.reader import ReadStats, decode_record, iter_raw, message_types
+from hilnav.topics import split_log_topic
 from msgs import (
     DeviceDiagnostics,
     GpsFix,
@@ -93,7 +93,7 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
     types = message_types()
     robots: dict[str, RobotLog] = {}
     for r in iter_raw(path, stats=st):
-        robot, kind = split_topic(r.topic)
+        robot, kind = split_log_topic(r.topic)
         if kind.startswith("raw/") or kind.startswith("fox/") or not robot:
             continue
         m = decode_record(r, st, types)

@@ -63,7 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         choices=("serial", "slcan", "python-can"),
         help="IR board on its serial port, or on CAN behind an emulated slcan adapter "
-        "(default: the config's devices.ir.link)",
+        "(default: the config's devices.ir.link; serial without --config)",
     )
     p.add_argument("--ir-rate", type=int, default=None, help="IR board samples per second [20]")
     p.add_argument("--gyro-rate", type=int, default=None, help="gyro packets per second [100]")
@@ -129,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
         ir_rate=args.ir_rate,
         gyro_rate=args.gyro_rate,
     )
+    if args.ir_link is None and args.config is None:
+        args.ir_link = "serial"  # a bare `hilnav fake` serves the board on its serial port
     if args.ir_link is not None:
         link = "serial" if args.ir_link == "serial" else "can"
         cfg = dataclasses.replace(

@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from hilnav.topics import split_log_topic
 from msgs import (
     GpsFix,
     GroundTruth,
@@ -228,17 +229,9 @@ class ViewState:
     odom: dict[str, Pose2D] = field(default_factory=dict)
 
 
-def split_topic(topic: str) -> tuple[str, str]:
-    """``/<robot>/<name...>`` -> (robot, name); ("", topic) when there is no robot part."""
-    parts = topic.strip("/").split("/", 1)
-    if len(parts) == 2:
-        return parts[0], parts[1]
-    return "", parts[0]
-
-
 def views(topic: str, msg: Any, state: ViewState | None = None) -> list[View]:
     """Foxglove views of the message ``msg`` logged on ``topic`` (may be empty)."""
-    robot, name = split_topic(topic)
+    robot, name = split_log_topic(topic)
     base = f"/{robot}/{VIEW_PREFIX}" if robot else f"/{VIEW_PREFIX}"
     out: list[View] = []
     if isinstance(msg, PoseEstimate):

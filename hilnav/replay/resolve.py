@@ -8,9 +8,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from hilnav.log.foxglove import split_topic
 from hilnav.log.reader import iter_raw
-from hilnav.replay.devices import INPUT_TOPICS
+from hilnav.topics import SERVICE_INPUTS, split_log_topic
 
 PIPELINES = ("auto", "daemon", "landmark-slam")
 
@@ -21,8 +20,8 @@ def guess_robot(path: str | Path, meta: dict[str, str]) -> str:
         return meta["robot"]
     counts: Counter = Counter()
     for r in iter_raw(path):
-        robot, kind = split_topic(r.topic)
-        if robot and kind in INPUT_TOPICS:
+        robot, kind = split_log_topic(r.topic)
+        if robot and kind in SERVICE_INPUTS:
             counts[robot] += 1
     if not counts:
         raise ValueError("no device messages (odometry, gyro, gps, ir) in this log")
@@ -63,7 +62,9 @@ def choose_pipeline(
             name = "landmark-slam"
         else:
             kinds = {
-                split_topic(r.topic)[1] for r in iter_raw(src) if split_topic(r.topic)[0] == robot
+                split_log_topic(r.topic)[1]
+                for r in iter_raw(src)
+                if split_log_topic(r.topic)[0] == robot
             }
             if kinds & {"control", "landmark_scan"} and "odometry" not in kinds:
                 name = "landmark-slam"
