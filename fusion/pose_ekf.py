@@ -78,7 +78,8 @@ import math
 import numpy as np
 
 from fusion import models
-from fusion.alignment import Deferred, GyroAlignment
+from fusion.alignment import Advance, Deferred, GyroOdometryAlignment
+from fusion.arrival import ArrivalOrder
 from fusion.ekf_update import (
     EkfCounters,
     UpdateResult,
@@ -86,7 +87,7 @@ from fusion.ekf_update import (
     joseph_update,
     repair_pd,
 )
-from fusion.increments import GyroDelta, GyroDeltas, OdometryDeltas, RestBias
+from fusion.increments import OdometryStep
 from fusion.pose_ekf_params import DEG, PoseEkfParams, gps_fix_measurement
 from msgs import (
     GpsFix,
@@ -106,17 +107,19 @@ __all__ = ["DEG", "PoseEkf", "PoseEkfParams", "UpdateResult"]
 class PoseEkf:
     """EKF on (x, y, theta) fed odometry, gyro and GPS (see module docstring)."""
 
-    def __init__(self, params: PoseEkfParams | None = None, initial: Pose2D | None = None):
+    def __init__(
+        self,
+        params: PoseEkfParams | None = None,
+        initial: Pose2D | None = None,
+        arrival: ArrivalOrder | None = None,
+    ):
         self.params = p = params or PoseEkfParams()
         self._gates = {1: p.gate(1), 2: p.gate(2)}
-        self._odo = OdometryDeltas()
-        self._gyro = GyroDeltas()
-        self._align = GyroAlignment(self._gyro, p.gyro_max_lag_s, p.gyro_max_defer_s)
-        self._bias = RestBias(p.bias_window_s, p.bias_min_rest_s)
+        self.heading_gate = self._gates[1]
+        self._align = GyroOdometryAlignment(p, arrival)
         self._count = EkfCounters()
         self.last_nis: dict[str, float] = {"gps": math.nan, "gyro": math.nan, "heading": math.nan}
         self.gps_stale = True
-        self.gyro_stale = True
         self._initial = initial
         self._speed_mps = 0.0
         self._last_gps_ns: int | None = None
@@ -145,8 +148,6 @@ class PoseEkf:
         self.P = self._initial_cov()
         self.stamp_ns = int(stamp_ns)
         self._pose_set = known
-        self._odo.reset()
-        self._gyro.reset()
         self._align.reset()
         self._last_gps_ns = None
         self._last_gps_used_ns = None
@@ -190,7 +191,11 @@ class PoseEkf:
 
     @property
     def gyro_bias_radps(self) -> float:
-        return self._bias.bias_radps
+        return self._align.bias.bias_radps
+
+    @property
+    def gyro_stale(self) -> bool:
+        return self._align.gyro_stale
 
     def estimate(self) -> PoseEstimate:
         return PoseEstimate(
@@ -240,7 +245,7 @@ class PoseEkf:
         )
         result = None
         if dtheta_gyro is not None and math.isfinite(dtheta_gyro):
-            rg = gyro_var if gyro_var is not None else self._gyro_var(dtheta_gyro, 0.0)
+            rg = gyro_var if gyro_var is not None else self.gyro_variance(dtheta_gyro, 0.0)
             s = qu[1, 1] + rg
             nu = dtheta_gyro - u[1]
             nis = nu * nu / s
@@ -276,7 +281,7 @@ class PoseEkf:
         self._count.predictions += 1
         return result
 
-    def _gyro_var(self, dtheta_gyro: float, dt_s: float) -> float:
+    def gyro_variance(self, dtheta_gyro: float, dt_s: float) -> float:
         p = self.params
         return (
             (p.gyro_gamma * dtheta_gyro) ** 2
@@ -325,88 +330,34 @@ class PoseEkf:
         else:
             self._count.extra[name] = self._count.extra.get(name, 0) + 1
 
-    # -- message-level ---------------------------------------------------------------
-    def feed(self, msg: object) -> PoseEstimate | None:
-        """RobotOdometry / GpsFix -> the estimate (None if nothing changed); GyroSample -> None."""
-        if isinstance(msg, RobotOdometry):
-            return self.feed_odometry(msg)
-        if isinstance(msg, GyroSample):
-            self.feed_gyro(msg)
-            return None
-        if isinstance(msg, GpsFix):
-            return self.feed_gps(msg)
-        raise TypeError(f"PoseEkf is fed RobotOdometry, GyroSample or GpsFix, not {type(msg)}")
+    # -- what the alignment front end calls (fusion.alignment.AlignedFilter) ----------
+    def _wheels(self, step: OdometryStep) -> tuple[float, float]:
+        dl, dr = models.step_to_wheels(step.ds_m, step.dtheta_rad, self.params.wheelbase_m)
+        return float(dl), float(dr)
 
-    def feed_gyro(self, msg: GyroSample) -> None:
-        self._count.gyro += 1
-        self._gyro.feed(msg)
-
-    def feed_odometry(self, msg: RobotOdometry) -> PoseEstimate | None:
-        """Predict over the motion since the previous odometry (fusing the gyro's step).
-
-        The gyro's change is fused only over an interval it has caught up with
-        (fusion.alignment); steps it lags behind are predicted on the encoders and
-        corrected when it catches up (:meth:`_merge`).
-        """
-        self._count.odometry += 1
-        step = self._odo.feed(msg)
+    def encoder_variance(self, step: OdometryStep) -> float:
+        """Q_u[1, 1] of the step: the variance of its encoder heading change (eq. 1)."""
         p = self.params
-        if step is None:
-            if self._odo.baselined:  # first message or re-baseline after a jump
-                d = self._align.close()
-                lost = self._align.baseline()
-                if d is not None and lost is not None:
-                    self._merge(d, lost)
-                elif lost is not None:  # odometry jumped: the gyro alone turns the heading
-                    dg = lost.angle_rad - self._bias.bias_radps * lost.covered_s
-                    self.x[2] = wrap_angle(self.x[2] + dg)
-                    self.P[2, 2] += self._gyro_var(dg, lost.covered_s)
-                self.stamp_ns = max(self.stamp_ns, msg.stamp_ns)
-                return self.estimate()
-            return None
-        decision, gyro = self._align.decide(step)
-        if p.learn_bias_at_rest:
-            self._bias.observe(step, gyro if decision == "fuse" else None)
-        stale = self._align.silent_s > p.gyro_timeout_s
-        if stale and not self.gyro_stale:
-            self._count.gyro_timeouts += 1
-        self.gyro_stale = stale
-        if decision == "timeout":
-            self._count.gyro_misaligned += 1
-        dl, dr = models.step_to_wheels(step.ds_m, step.dtheta_rad, p.wheelbase_m)
+        dl, dr = self._wheels(step)
         qu = models.step_covariance(
-            float(dl), float(dr), p.wheelbase_m, p.wheel_noise_m_per_sqrt_m,
+            dl, dr, p.wheelbase_m, p.wheel_noise_m_per_sqrt_m,
             p.wheel_noise_floor_m, p.turn_noise_fraction,
         )  # fmt: skip
-        var_enc, x0, y0 = float(qu[1, 1]), float(self.x[0]), float(self.x[1])
-        if decision == "fuse" and gyro is not None:
-            dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
-            rg = self._gyro_var(dg, gyro.covered_s)
-            nu = dg - step.dtheta_rad
-            if not step.at_rest and nu * nu / (var_enc + rg) > self._gates[1]:
-                self._align.postpone(step, gyro, var_enc, x0, y0)
-                self.predict(float(dl), float(dr), dt_s=step.dt_s)
-            else:
-                self.predict(float(dl), float(dr), dg, rg, dt_s=step.dt_s)
-        else:
-            if decision in ("deferred", "merged"):
-                self._align.defer(step, var_enc, x0, y0)
-            self.predict(float(dl), float(dr), dt_s=step.dt_s)
-            if decision == "merged":
-                d = self._align.close()
-                if d is not None and gyro is not None:
-                    self._merge(d, gyro)
-        self.stamp_ns = step.t1_ns
-        self._speed_mps = abs(step.ds_m) / step.dt_s if step.dt_s > 0 else 0.0
-        gps_stale = self._last_gps_ns is None or (
-            (step.t1_ns - self._last_gps_ns) * NS > p.gps_timeout_s
-        )
-        if gps_stale and not self.gps_stale:
-            self._count.gps_timeouts += 1
-        self.gps_stale = gps_stale
-        return self.estimate()
+        return float(qu[1, 1])
 
-    def _merge(self, d: Deferred, gyro: GyroDelta) -> None:
+    def position(self) -> tuple[float, float]:
+        return float(self.x[0]), float(self.x[1])
+
+    def predict_step(self, step: OdometryStep, dtheta_gyro: float | None, covered_s: float) -> None:
+        """:meth:`predict` over an odometry step, with the gyro's change over ``covered_s``."""
+        dl, dr = self._wheels(step)
+        if dtheta_gyro is None:
+            self.predict(dl, dr, dt_s=step.dt_s)
+        else:
+            rg = self.gyro_variance(dtheta_gyro, covered_s)
+            self.predict(dl, dr, dtheta_gyro, rg, dt_s=step.dt_s)
+
+    def correct_deferred(self, d: Deferred, dtheta_gyro: float, covered_s: float) -> None:
         """The gyro's change over a deferred interval, fused retroactively.
 
         The deferred steps were predicted on the encoders (heading moved by their sum E,
@@ -416,9 +367,8 @@ class PoseEkf:
         K Sw, and the position driven meanwhile is rotated about its start by half the
         correction. Approximate (the cross-covariances are kept): used only after stalls.
         """
-        dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
-        rg = self._gyro_var(dg, gyro.covered_s)
-        nu = dg - d.dtheta_enc
+        rg = self.gyro_variance(dtheta_gyro, covered_s)
+        nu = dtheta_gyro - d.dtheta_enc
         s = d.var_enc + rg
         nis = nu * nu / s
         self.last_nis["gyro"] = nis
@@ -429,9 +379,7 @@ class PoseEkf:
             k = 1.0
             self._count.odometry_heading_rejected += 1
         delta = k * nu
-        c, sn = math.cos(0.5 * delta), math.sin(0.5 * delta)
-        ex, ey = self.x[0] - d.x0, self.x[1] - d.y0
-        self.x[0], self.x[1] = d.x0 + c * ex - sn * ey, d.y0 + sn * ex + c * ey
+        self.x[0], self.x[1] = d.rotate(self.x[0], self.x[1], 0.5 * delta)
         self.x[2] = wrap_angle(self.x[2] + delta)
         pt = self.P.copy()
         pt[2, 2] = max(pt[2, 2] - k * d.var_enc + (rg if k == 1.0 else 0.0), 1e-12)
@@ -440,6 +388,47 @@ class PoseEkf:
             self._count.covariance_repairs += 1
         self.P = 0.5 * (pt + pt.T)
         self._count.gyro_merges += 1
+
+    def turn(self, dtheta_gyro: float, covered_s: float) -> None:
+        self.x[2] = wrap_angle(self.x[2] + dtheta_gyro)
+        self.P[2, 2] += self.gyro_variance(dtheta_gyro, covered_s)
+
+    # -- message-level ---------------------------------------------------------------
+    def feed(self, msg: object) -> PoseEstimate | None:
+        """RobotOdometry / GpsFix -> the estimate (None if nothing changed); GyroSample ->
+        the estimate only if it released held odometry (``arrival``), else None."""
+        if isinstance(msg, RobotOdometry):
+            return self.feed_odometry(msg)
+        if isinstance(msg, GyroSample):
+            return self.feed_gyro(msg)
+        if isinstance(msg, GpsFix):
+            return self.feed_gps(msg)
+        raise TypeError(f"PoseEkf is fed RobotOdometry, GyroSample or GpsFix, not {type(msg)}")
+
+    def feed_gyro(self, msg: GyroSample) -> PoseEstimate | None:
+        return self._advanced(self._align.feed_gyro(msg, self))
+
+    def feed_odometry(self, msg: RobotOdometry) -> PoseEstimate | None:
+        """Predict over the motion since the previous odometry (the alignment front end
+        decides how the gyro's change is fused); None if no step ran."""
+        return self._advanced(self._align.feed_odometry(msg, self))
+
+    def _advanced(self, a: Advance | None) -> PoseEstimate | None:
+        if a is None:
+            return None
+        step = a.step
+        if step is None:  # first message or re-baseline after a jump
+            self.stamp_ns = max(self.stamp_ns, a.stamp_ns)
+            return self.estimate()
+        self.stamp_ns = step.t1_ns
+        self._speed_mps = abs(step.ds_m) / step.dt_s if step.dt_s > 0 else 0.0
+        gps_stale = self._last_gps_ns is None or (
+            (step.t1_ns - self._last_gps_ns) * NS > self.params.gps_timeout_s
+        )
+        if gps_stale and not self.gps_stale:
+            self._count.gps_timeouts += 1
+        self.gps_stale = gps_stale
+        return self.estimate()
 
     def gps_measurement(self, msg: GpsFix) -> tuple[np.ndarray, np.ndarray] | None:
         """(z, R) of a fix in local metres, or None when it has no usable position."""
@@ -492,36 +481,37 @@ class PoseEkf:
     # -- diagnostics -----------------------------------------------------------------
     def stale(self, now_ns: int) -> dict[str, bool]:
         """Which inputs have been silent longer than their timeout at ``now_ns``."""
-        p = self.params
-        last_o = self._odo.last.stamp_ns if self._odo.last is not None else None
-        last_g = self._gyro.last_stamp_ns
+        p, a = self.params, self._align
+        last_o = a.odo.last.stamp_ns if a.odo.last is not None else None
 
         def old(t: int | None, timeout: float) -> bool:
             return t is None or (now_ns - t) * NS > timeout
 
         return {
             "odometry": old(last_o, p.odometry_timeout_s),
-            "gyro": old(last_g, p.gyro_timeout_s),
+            "gyro": old(a.gyro.last_stamp_ns, p.gyro_timeout_s),
             "gps": old(self._last_gps_ns, p.gps_timeout_s),
         }
 
     def counters(self) -> dict[str, int | float | bool]:
-        c = self._count
-        out: dict[str, int | float | bool] = {
-            k: v for k, v in vars(c).items() if isinstance(v, int) and not isinstance(v, bool)
-        }
+        c, a = self._count, self._align
+        out: dict[str, int | float | bool] = {"odometry": a.odo.messages, "gyro": a.gyro.messages}
+        out.update((k, v) for k, v in vars(c).items() if type(v) is int)
         out.update(c.extra)
         out.update(
             {
-                "out_of_order_odometry": self._odo.out_of_order,
-                "odometry_jumps": self._odo.jumps,
-                "out_of_order_gyro": self._gyro.out_of_order,
-                "gyro_discontinuities": self._gyro.discontinuities,
-                "gyro_postponed": self._align.postponed,
-                "gyro_deferred_steps": self._align.deferrals,
-                "gyro_stale": self.gyro_stale,
+                "out_of_order_odometry": a.odo.out_of_order,
+                "odometry_jumps": a.odo.jumps,
+                "out_of_order_gyro": a.gyro.out_of_order,
+                "gyro_discontinuities": a.gyro.discontinuities,
+                "gyro_postponed": a.postponed,
+                "gyro_deferred_steps": a.deferrals,
+                "gyro_misaligned": a.misaligned,
+                "gyro_timeouts": a.gyro_timeouts,
+                "odometry_dropped": a.dropped,
+                "gyro_stale": a.gyro_stale,
                 "gps_stale": self.gps_stale,
-                "gyro_bias_radps": self._bias.bias_radps,
+                "gyro_bias_radps": a.bias.bias_radps,
             }
         )
         return out
