@@ -181,10 +181,11 @@ class GyroOdometryAlignment:
     # -- messages --------------------------------------------------------------------
     def feed_gyro(self, msg: GyroSample, filt: AlignedFilter) -> Advance | None:
         """Take a gyro sample; first the odometry it releases, if any (arrival order)."""
-        out = None
-        if self.arrival is not None:
-            held, msg = self.arrival.gyro(msg)
-            out = None if held is None else self._take(held, filt)
+        if self.arrival is None:
+            self.gyro.feed(msg)
+            return None
+        held, msg = self.arrival.gyro(msg)
+        out = None if held is None else self._take(held, filt)
         self.gyro.feed(msg)
         return out
 

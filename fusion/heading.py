@@ -260,7 +260,8 @@ class HeadingFilter:
 
     def feed_gyro(self, msg: GyroSample) -> HeadingEstimate | None:
         """Take a gyro sample; an estimate only if it released held odometry (``arrival``)."""
-        return self._advanced(self._align.feed_gyro(msg, self))
+        a = self._align.feed_gyro(msg, self)
+        return None if a is None else self._advanced(a)
 
     def feed_odometry(self, msg: RobotOdometry) -> HeadingEstimate | None:
         """Run one step on the motion since the previous odometry; None if no step ran."""

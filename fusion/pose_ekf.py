@@ -110,7 +110,8 @@ class PoseEkf(PoseEkfCore):
         raise TypeError(f"PoseEkf is fed RobotOdometry, GyroSample or GpsFix, not {type(msg)}")
 
     def feed_gyro(self, msg: GyroSample) -> PoseEstimate | None:
-        return self._advanced(self._align.feed_gyro(msg, self))
+        a = self._align.feed_gyro(msg, self)
+        return None if a is None else self._advanced(a)
 
     def feed_odometry(self, msg: RobotOdometry) -> PoseEstimate | None:
         """Predict over the motion since the previous odometry (the alignment front end
