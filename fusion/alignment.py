@@ -7,7 +7,7 @@ odometry messages and, at every odometry message, tells its filter (the
 :class:`AlignedFilter` protocol: the filter's noise model and its predict/update steps)
 what to do with that interval: predict with or without the gyro's change, correct
 deferred steps retroactively, or turn by the gyro alone. The filters keep only their
-predict/update; every decision about time lives here.
+predict/update; which gyro change goes with which odometry step is decided here alone.
 
 With an :class:`fusion.arrival.ArrivalOrder` (the pipeline's case: messages in arrival
 order as the stream drivers stamp them, bursts sharing one stamp) the messages are first
