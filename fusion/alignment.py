@@ -1,42 +1,68 @@
-"""Which gyro rotation goes with which odometry step, robust to late and bunched messages.
+"""The gyro/odometry alignment front end: it hands the fusion filters matched intervals.
 
 Both fusion filters fuse the gyro's heading change with the encoders' over the *same*
-interval (ir-grid-mapping eq. 1-4, ekf-vs-cp eq. 1-4 with the gyro as an increment). On a
-loaded host the reader threads stall and then deliver a burst of SIPs and a burst of gyro
-packets, each burst stamped with one late read time, in either order. If a step is fused
-with the gyro samples that happen to have arrived, the gyro's change covers only part of
-the step (the rest arrives in the next burst) and the filter takes the missing rotation
-for an encoder error; the rotation arriving later is then spread over a step it does not
-belong to, or dropped: a permanent heading offset (the demo's -25 deg glitch).
+interval between two odometry messages (ir-grid-mapping eq. 1-4; ekf-vs-cp eq. 1-4 with
+the gyro as an increment). :class:`GyroOdometryAlignment` takes the gyro samples and the
+odometry messages and, at every odometry message, tells its filter (the
+:class:`AlignedFilter` protocol: the filter's noise model and its predict/update steps)
+what to do with that interval: predict with or without the gyro's change, correct
+deferred steps retroactively, or turn by the gyro alone. The filters keep only their
+predict/update; which gyro change goes with which odometry step is decided here alone.
 
-:class:`GyroAlignment` enforces two rules instead:
+With an :class:`fusion.arrival.ArrivalOrder` (the pipeline's case: messages in arrival
+order as the stream drivers stamp them, bursts sharing one stamp) the messages are first
+put in stamp order (gyro restamped, odometry held until the gyro catches up, bursts and
+stale odometry dropped: see fusion.arrival). Without one the stamps are trusted (offline
+or simulated messages) and every odometry message is taken when it comes.
 
-1. *No gyro rotation is lost or counted twice while the gyro runs.* The gyro's angle
-   changes telescope (fusion.increments.GyroDeltas); a change is only taken when it is
-   fused, so the sum of the fused gyro changes is the gyro's total rotation.
-2. *A step is fused only when the gyro has caught up with it* (its newest sample no more
-   than ``max_lag_s`` older than the step's end). Until then the step is *deferred*: the
-   filter predicts on the encoders alone and accumulates the deferred steps
-   (:class:`Deferred`); when the gyro catches up, its change over the whole deferred
-   interval is fused at once with the encoders' change over the same interval (decision
-   ``"merged"``), which corrects the heading retroactively. Deferred for longer than
-   ``timeout_s``: the gyro is given up for that interval (decision ``"timeout"``: the
-   encoder-only prediction stands, the gyro re-baselines at its next sample, and the
-   first step after that is encoder only, ``"unchained"``, because the gyro's change
-   then starts inside it).
+Then, per odometry step (fusion.increments: odometry poses -> steps, gyro angles ->
+changes that telescope), the decisions (:data:`Decision`):
 
-Pure bookkeeping on message stamps; no clocks.
+1. *No gyro rotation is lost or counted twice while the gyro runs*: a gyro change is
+   taken only when it is used, so the used changes sum to the gyro's total rotation.
+2. ``"fuse"``: the gyro has caught up with the step (its newest sample no more than
+   ``gyro_max_lag_s`` older than the step's end): the filter fuses both changes.
+3. ``"deferred"``: it has not; the filter predicts on the encoders and the step joins a
+   deferred interval (:class:`Deferred`). ``"merged"``: the gyro has caught up with a
+   deferred interval; its change over the whole interval is fused with the encoders'
+   over the same interval, which corrects the heading retroactively.
+4. ``"timeout"``: deferred for longer than ``gyro_max_defer_s``; the gyro is given up for
+   that interval (the encoder-only prediction stands; counted ``misaligned``) and
+   re-baselines at its next sample. ``"unchained"``: no gyro chain yet (or after a
+   timeout): encoder only; the chain starts at the end of a step the gyro has caught up
+   with.
+5. ``"postponed"``: on a fresh step the two changes disagree beyond the filter's
+   chi-square gate while the robot moves. If the stamps misled the alignment (a burst),
+   the disagreement vanishes over a longer interval: the step is deferred and its gyro
+   change carried to the next one (the filter's gate on the merge then decides, taking
+   the encoders as the outlier beyond it: the gyro cannot jump, a bad SIP can).
+6. At an odometry baseline (first message, or a jump): a deferred interval is corrected
+   with the gyro's change since; if the odometry lost an interval the gyro covered, the
+   gyro alone turns the heading over it.
+
+Every gyro change handed to the filter has the bias learnt at rest removed
+(fusion.increments.RestBias, learnt on the ``"fuse"`` steps). The gyro is flagged stale
+when silent for longer than ``gyro_timeout_s`` (transitions counted ``gyro_timeouts``).
+
+One instance per filter, not one shared: decisions 3-5 depend on the filter (rule 5's
+gate is its own noise model, a deferred interval holds its position), so two filters
+cannot share that state; the arrival-order stage depends on the input sequence alone, so
+each filter's copy does the same thing, and each service stays switchable on its own.
+
+Pure: no threads or clocks, time is the message stamps (integer ns); deterministic.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, Protocol
 
-from fusion.increments import NS, GyroDelta, GyroDeltas, OdometryStep
+from fusion.arrival import ArrivalOrder
+from fusion.increments import NS, GyroDelta, GyroDeltas, OdometryDeltas, OdometryStep, RestBias
+from msgs import GyroSample, RobotOdometry
 
-Decision = Literal["fuse", "merged", "deferred", "timeout", "unchained", "encoder"]
+Decision = Literal["fuse", "merged", "deferred", "postponed", "timeout", "unchained"]
 
 
 @dataclass
@@ -51,44 +77,181 @@ class Deferred:
     var_enc: float = 0.0
     moving: bool = False
 
+    def rotate(self, x: float, y: float, angle: float) -> tuple[float, float]:
+        """The point (x, y) rotated by ``angle`` about the interval's start position."""
+        c, s = math.cos(angle), math.sin(angle)
+        ex, ey = x - self.x0, y - self.y0
+        return self.x0 + c * ex - s * ey, self.y0 + s * ex + c * ey
 
-class GyroAlignment:
-    """Decides, per odometry step, how the gyro's change is used (module docstring)."""
 
-    def __init__(self, gyro: GyroDeltas, max_lag_s: float = 0.05, max_defer_s: float = 2.0):
-        self.gyro = gyro
-        self.max_lag_s = max_lag_s
-        self.max_defer_s = max_defer_s
+@dataclass(frozen=True, slots=True)
+class Advance:
+    """An odometry message the filter took: a step ran, or (``step`` None) a new baseline."""
+
+    stamp_ns: int
+    step: OdometryStep | None
+
+
+class GyroHandling(Protocol):
+    """The gyro handling parameters (HeadingParams and PoseEkfParams both have them)."""
+
+    @property
+    def gyro_max_lag_s(self) -> float: ...
+    @property
+    def gyro_max_defer_s(self) -> float: ...
+    @property
+    def gyro_timeout_s(self) -> float: ...
+    @property
+    def learn_bias_at_rest(self) -> bool: ...
+    @property
+    def bias_window_s(self) -> float: ...
+    @property
+    def bias_min_rest_s(self) -> float: ...
+
+
+class AlignedFilter(Protocol):
+    """What the front end needs of a filter. Gyro changes (rad) come bias-removed, with
+    the time they cover (s)."""
+
+    @property
+    def heading_gate(self) -> float:
+        """Chi-square gate (1 dof) on a step's gyro-minus-encoder innovation."""
+        ...
+
+    def encoder_variance(self, step: OdometryStep) -> float:
+        """Variance (rad^2) of the encoders' heading change over the step."""
+        ...
+
+    def gyro_variance(self, dtheta_rad: float, dt_s: float) -> float:
+        """Variance (rad^2) of a gyro heading change."""
+        ...
+
+    def position(self) -> tuple[float, float]: ...
+
+    def predict_step(self, step: OdometryStep, dtheta_gyro: float | None, covered_s: float) -> None:
+        """Predict over the step, fusing the gyro's change if given (else encoder only)."""
+        ...
+
+    def correct_deferred(self, d: Deferred, dtheta_gyro: float, covered_s: float) -> None:
+        """Fuse the gyro's change over a deferred interval, retroactively."""
+        ...
+
+    def turn(self, dtheta_gyro: float, covered_s: float) -> None:
+        """Turn by the gyro's change alone (an interval the odometry lost)."""
+        ...
+
+
+class GyroOdometryAlignment:
+    """Gyro samples and odometry messages in -> matched intervals to a filter (module doc)."""
+
+    def __init__(self, params: GyroHandling, arrival: ArrivalOrder | None = None) -> None:
+        self.max_lag_s = params.gyro_max_lag_s
+        self.max_defer_s = params.gyro_max_defer_s
+        self.timeout_s = params.gyro_timeout_s
+        self.learn_bias = params.learn_bias_at_rest
+        self.arrival = arrival
+        self.odo = OdometryDeltas()
+        self.gyro = GyroDeltas()
+        self.bias = RestBias(params.bias_window_s, params.bias_min_rest_s)
         self.silent_s = math.inf
+        self.gyro_stale = True
+        self.decision: Decision | None = None
         self.deferred: Deferred | None = None
         self.chained = False
-        self.merges = 0
         self.deferrals = 0
         self.postponed = 0
+        self.misaligned = 0
+        self.gyro_timeouts = 0
         self._carry: GyroDelta | None = None
 
     def reset(self) -> None:
+        """Forget the odometry and gyro baselines and any deferred interval (a filter reset).
+        The arrival-order stage and the learnt bias describe the devices and are kept."""
+        self.odo.reset()
+        self.gyro.reset()
         self.deferred = None
         self._carry = None
         self.chained = False
 
-    def baseline(self) -> GyroDelta | None:
-        """At an odometry baseline (first message, or a re-baseline after an odometry jump):
-        the gyro starts here too. Returns the gyro's change since the last step if it
-        belongs to the interval the odometry lost (chained), so the caller keeps it."""
-        g = self.gyro.take()
-        chained = self.chained
-        if self._carry is not None and g is not None:
-            g = GyroDelta(self._carry.angle_rad + g.angle_rad,
-                          self._carry.covered_s + g.covered_s, self._carry.samples + g.samples)  # fmt: skip
-        elif self._carry is not None:
-            g = self._carry
-        self._carry = None
-        self.deferred = None
-        self.chained = self.gyro.last is not None
-        return g if chained else None
+    @property
+    def dropped(self) -> int:
+        """Odometry messages the arrival-order stage dropped (bursts, stale)."""
+        return 0 if self.arrival is None else self.arrival.dropped
 
-    def decide(self, step: OdometryStep) -> tuple[Decision, GyroDelta | None]:
+    # -- messages --------------------------------------------------------------------
+    def feed_gyro(self, msg: GyroSample, filt: AlignedFilter) -> Advance | None:
+        """Take a gyro sample; first the odometry it releases, if any (arrival order)."""
+        if self.arrival is None:
+            self.gyro.feed(msg)
+            return None
+        held, msg = self.arrival.gyro(msg)
+        out = None if held is None else self._take(held, filt)
+        self.gyro.feed(msg)
+        return out
+
+    def feed_odometry(self, msg: RobotOdometry, filt: AlignedFilter) -> Advance | None:
+        """Take an odometry message (or, in arrival order, the one it releases): None if
+        no step ran and no baseline was set (held, dropped, not newer)."""
+        if self.arrival is not None:
+            released = self.arrival.odometry(msg)
+            if released is None:
+                return None
+            msg = released
+        return self._take(msg, filt)
+
+    def _take(self, msg: RobotOdometry, filt: AlignedFilter) -> Advance | None:
+        step = self.odo.feed(msg)
+        if step is not None:
+            self._step(step, filt)
+            return Advance(step.t1_ns, step)
+        if not self.odo.baselined:
+            return None
+        d, self.deferred = self.deferred, None
+        lost = self._baseline()
+        if d is not None and lost is not None:
+            filt.correct_deferred(d, self._unbiased(lost), lost.covered_s)
+        elif lost is not None:
+            filt.turn(self._unbiased(lost), lost.covered_s)
+        return Advance(msg.stamp_ns, None)
+
+    # -- intervals -------------------------------------------------------------------
+    def _step(self, step: OdometryStep, filt: AlignedFilter) -> None:
+        decision, gyro = self._decide(step)
+        if self.learn_bias:
+            self.bias.observe(step, gyro if decision == "fuse" else None)
+        stale = self.silent_s > self.timeout_s
+        if stale and not self.gyro_stale:
+            self.gyro_timeouts += 1
+        self.gyro_stale = stale
+        var_enc = filt.encoder_variance(step)
+        x0, y0 = filt.position()
+        if decision == "fuse" and gyro is not None:
+            dg = self._unbiased(gyro)
+            nu = dg - step.dtheta_rad
+            s = var_enc + filt.gyro_variance(dg, gyro.covered_s)
+            if not step.at_rest and nu * nu / s > filt.heading_gate:
+                # rule 5: defer the step, carry the gyro's change to the next one
+                decision = "postponed"
+                self._defer(step, var_enc, x0, y0)
+                self._carry = gyro
+                self.postponed += 1
+                filt.predict_step(step, None, 0.0)
+            else:
+                filt.predict_step(step, dg, gyro.covered_s)
+        else:
+            if decision in ("deferred", "merged"):
+                self._defer(step, var_enc, x0, y0)
+            filt.predict_step(step, None, 0.0)
+            if decision == "merged":
+                d, self.deferred = self.deferred, None
+                if d is not None and gyro is not None:
+                    filt.correct_deferred(d, self._unbiased(gyro), gyro.covered_s)
+        self.decision = decision
+
+    def _unbiased(self, g: GyroDelta) -> float:
+        return g.angle_rad - self.bias.bias_radps * g.covered_s
+
+    def _decide(self, step: OdometryStep) -> tuple[Decision, GyroDelta | None]:
         last = self.gyro.last_stamp_ns
         self.silent_s = math.inf if last is None else (step.t1_ns - last) * NS
         if last is None or not self.chained:
@@ -105,23 +268,35 @@ class GyroAlignment:
                 self._carry = None
                 self.gyro.reset()
                 self.chained = False
+                self.misaligned += 1
                 return "timeout", None
             self.deferrals += 1
             return "deferred", None
-        g = self.gyro.take()
-        if self._carry is not None:
-            c, self._carry = self._carry, None
-            g = c if g is None else GyroDelta(c.angle_rad + g.angle_rad,
-                                              c.covered_s + g.covered_s, c.samples + g.samples)  # fmt: skip
+        g = self._with_carry(self.gyro.take())
         if g is None:  # caught up, no new sample: the gyro saw no rotation since its last take
             g = GyroDelta(0.0, 0.0, 0)
-        if self.deferred is not None:
-            self.merges += 1
-            return "merged", g
-        return "fuse", g
+        return ("fuse" if self.deferred is None else "merged"), g
 
-    def defer(self, step: OdometryStep, var_enc: float, x: float, y: float) -> Deferred:
-        """Record a deferred step (x, y: the position before it)."""
+    def _with_carry(self, g: GyroDelta | None) -> GyroDelta | None:
+        """``g`` plus the gyro change carried from a postponed step (which is consumed)."""
+        c, self._carry = self._carry, None
+        if c is None or g is None:
+            return c if g is None else g
+        return GyroDelta(
+            c.angle_rad + g.angle_rad, c.covered_s + g.covered_s, c.samples + g.samples
+        )
+
+    def _baseline(self) -> GyroDelta | None:
+        """At an odometry baseline the gyro starts over too. Returns the gyro's change
+        since the last step if the gyro was chained (it covers the interval the odometry
+        lost, so the filter keeps it)."""
+        g = self._with_carry(self.gyro.take())
+        chained = self.chained
+        self.chained = self.gyro.last is not None
+        return g if chained else None
+
+    def _defer(self, step: OdometryStep, var_enc: float, x: float, y: float) -> None:
+        """Add a step to the deferred interval (x, y: the position before it)."""
         d = self.deferred
         if d is None:
             d = self.deferred = Deferred(step.t0_ns, x, y)
@@ -129,22 +304,3 @@ class GyroAlignment:
         d.dtheta_enc += step.dtheta_rad
         d.var_enc += var_enc
         d.moving = d.moving or not step.at_rest
-        return d
-
-    def postpone(
-        self, step: OdometryStep, gyro: GyroDelta, var_enc: float, x: float, y: float
-    ) -> bool:
-        """The gyro's change disagrees with the encoders' beyond the gate on a fresh step:
-        if the stamps misled the alignment (a burst), the disagreement vanishes over a
-        longer interval. Defer the step and carry the gyro's change to the next one.
-        False (do not postpone) when the step was already part of a deferred interval."""
-        if self.deferred is not None:
-            return False
-        self.defer(step, var_enc, x, y)
-        self._carry = gyro
-        self.postponed += 1
-        return True
-
-    def close(self) -> Deferred | None:
-        d, self.deferred = self.deferred, None
-        return d

@@ -71,12 +71,9 @@ def joseph_update(
 
 @dataclass
 class EkfCounters:
-    odometry: int = 0
-    gyro: int = 0
     gps: int = 0
     predictions: int = 0
     gyro_fused: int = 0
-    gyro_misaligned: int = 0
     gyro_merges: int = 0
     odometry_heading_rejected: int = 0
     gps_updates: int = 0
@@ -87,7 +84,6 @@ class EkfCounters:
     heading_rejected: int = 0
     out_of_order_gps: int = 0
     gps_timeouts: int = 0
-    gyro_timeouts: int = 0
     covariance_repairs: int = 0
     bad_input: int = 0
     resets: int = 0

@@ -31,22 +31,26 @@ keep the paper's model: sigma_gyro^2 += arw^2 dt + (bias_sigma dt)^2. The gyro's
 learnt while the robot stands still (odometry not moving for ``bias_min_rest_s``),
 averaged over up to ``bias_window_s`` of rest (fusion.increments.RestBias), and removed.
 
-Which gyro change goes with which odometry step is decided by fusion.alignment: a step
-the gyro has not caught up with (late or bunched messages after a host stall) is
-predicted on the encoders and corrected retroactively once the gyro covers it; a step
-whose two changes disagree beyond the chi-square gate ``gyro_gate_probability`` is
-postponed once and fused over the longer interval, and if they still disagree the
-encoders are taken as the outlier (the gyro cannot jump, a bad SIP can). No gyro
-rotation is dropped while the gyro runs, so no burst leaves a permanent offset.
+Which gyro change goes with which odometry step is decided by the alignment front end
+(fusion.alignment), which drives this filter's predict/update: a step the gyro has not
+caught up with (late or bunched messages after a host stall) is predicted on the encoders
+and corrected retroactively once the gyro covers it (:meth:`HeadingFilter.correct_deferred`:
+eq. 2-3 on the summed interval); a step whose two changes disagree beyond the chi-square
+gate ``gyro_gate_probability`` is postponed once and fused over the longer interval, and
+if they still disagree the encoders are taken as the outlier (the gyro cannot jump, a bad
+SIP can). No gyro rotation is dropped while the gyro runs, so no burst leaves a permanent
+offset.
 
 Position (as in the paper): x, y integrate the encoder distance along the fused heading
 (midpoint of the step).
 
-Message-level API (what the daemon calls):
-    f = HeadingFilter(HeadingParams(), initial=Pose2D(...))
-    f.feed(msg) -> HeadingEstimate | None   # RobotOdometry -> estimate; GyroSample -> None
+Message-level API (what the pipeline calls):
+    f = HeadingFilter(HeadingParams(), initial=Pose2D(...), arrival=ArrivalOrder(rate_hz))
+    f.feed(msg) -> HeadingEstimate | None   # the estimate whenever an odometry step ran
     f.feed_odometry(msg) / f.feed_gyro(msg); f.estimate(); f.reset(pose, stamp_ns)
     f.counters() -> dict[str, int | float]  (for diagnostics)
+``arrival`` (fusion.arrival): messages in arrival order as the drivers stamp them, put in
+stamp order first; without it the stamps are trusted and a gyro sample never runs a step.
 Array-level API: ``f.step(dd, dtheta_enc, dtheta_gyro | None, dt_s)``.
 """
 
@@ -58,8 +62,9 @@ from typing import Literal
 
 from scipy.stats import chi2
 
-from fusion.alignment import Deferred, GyroAlignment
-from fusion.increments import GyroDelta, GyroDeltas, OdometryDeltas, RestBias
+from fusion.alignment import Advance, Deferred, GyroOdometryAlignment
+from fusion.arrival import ArrivalOrder
+from fusion.increments import OdometryStep
 from msgs import GyroSample, HeadingEstimate, Pose2D, RobotOdometry, wrap_angle
 
 DEG = math.pi / 180.0
@@ -105,13 +110,9 @@ class HeadingParams:
 
 @dataclass
 class HeadingCounters:
-    odometry: int = 0
-    gyro: int = 0
     steps: int = 0
     steps_fused: int = 0
     steps_encoder_only: int = 0
-    gyro_timeouts: int = 0
-    gyro_misaligned: int = 0
     gyro_merges: int = 0
     odometry_heading_rejected: int = 0
     bad_input: int = 0
@@ -120,18 +121,17 @@ class HeadingCounters:
 class HeadingFilter:
     """1-D heading Kalman filter of ir-grid-mapping eq. 1-4 (see module docstring)."""
 
-    def __init__(self, params: HeadingParams | None = None, initial: Pose2D | None = None):
+    def __init__(
+        self,
+        params: HeadingParams | None = None,
+        initial: Pose2D | None = None,
+        arrival: ArrivalOrder | None = None,
+    ):
         self.params = params or HeadingParams()
-        self._odo = OdometryDeltas()
-        self._gyro = GyroDeltas()
-        self._align = GyroAlignment(
-            self._gyro, self.params.gyro_max_lag_s, self.params.gyro_max_defer_s
-        )
+        self._align = GyroOdometryAlignment(self.params, arrival)
         g = self.params.gyro_gate_probability
-        self._gate = math.inf if g is None else float(chi2.ppf(g, 1))
-        self._bias = RestBias(self.params.bias_window_s, self.params.bias_min_rest_s)
+        self.heading_gate = math.inf if g is None else float(chi2.ppf(g, 1))
         self._count = HeadingCounters()
-        self.gyro_stale = True
         self.reset(initial or Pose2D(), 0)
 
     # -- state -----------------------------------------------------------------------
@@ -145,13 +145,15 @@ class HeadingFilter:
         s0 = self.params.initial_sigma_rad
         self.variance = float(s0 * s0 if variance_rad2 is None else variance_rad2)
         self.stamp_ns = int(stamp_ns)
-        self._odo.reset()
-        self._gyro.reset()
         self._align.reset()
 
     @property
     def gyro_bias_radps(self) -> float:
-        return self._bias.bias_radps
+        return self._align.bias.bias_radps
+
+    @property
+    def gyro_stale(self) -> bool:
+        return self._align.gyro_stale
 
     def estimate(self) -> HeadingEstimate:
         return HeadingEstimate(
@@ -169,13 +171,13 @@ class HeadingFilter:
             self._count.bad_input += 1
             dtheta_gyro = None
         dt_s = max(0.0, dt_s)
-        sw2 = self._encoder_var(dd, dtheta_enc)
+        sw2 = self._encoder_var(dd, dtheta_enc)  # eq. (4)
         if dtheta_gyro is None:
             u = dtheta_enc
             self.variance += sw2
             self._count.steps_encoder_only += 1
         else:
-            sg2 = self._gyro_var(dtheta_gyro, dt_s)
+            sg2 = self.gyro_variance(dtheta_gyro, dt_s)
             if p.model == "paper":
                 prior = self.variance + sw2  # eq. (1)
                 k = prior / (prior + sg2)  # eq. (2)
@@ -196,7 +198,8 @@ class HeadingFilter:
         p = self.params
         return (p.alpha_rad_per_m * dd) ** 2 + (p.beta * dtheta_enc) ** 2 + p.variance_floor_rad2
 
-    def _gyro_var(self, dtheta_gyro: float, dt_s: float) -> float:
+    def gyro_variance(self, dtheta_gyro: float, dt_s: float) -> float:
+        """sigma_gyro^2 of eq. (4), plus the angle random walk and the residual bias."""
         p = self.params
         return (
             (p.gamma * dtheta_gyro) ** 2
@@ -205,121 +208,91 @@ class HeadingFilter:
             + p.variance_floor_rad2
         )
 
-    def _merge(self, d: Deferred, gyro: GyroDelta) -> None:
+    # -- what the alignment front end calls (fusion.alignment.AlignedFilter) ----------
+    def encoder_variance(self, step: OdometryStep) -> float:
+        return self._encoder_var(step.ds_m, step.dtheta_rad)
+
+    def position(self) -> tuple[float, float]:
+        return self.x, self.y
+
+    def predict_step(self, step: OdometryStep, dtheta_gyro: float | None, covered_s: float) -> None:
+        """One step of eq. (1)-(4); the gyro's variance is taken over the step's dt."""
+        self.step(step.ds_m, step.dtheta_rad, dtheta_gyro, step.dt_s)
+
+    def correct_deferred(self, d: Deferred, dtheta_gyro: float, covered_s: float) -> None:
         """Fuse the gyro's change over a deferred interval, retroactively (increment model).
 
         The deferred steps were predicted on the encoders: theta moved by their sum E and
         the variance grew by their variance sum Sw. The gyro's change G over the same
-        interval corrects theta by K (G - E), K = Sw / (Sw + Sg), and removes K Sw of the
-        variance; the position driven meanwhile is rotated about its start by half the
-        correction (the heading error grew along the interval).
+        interval corrects theta by K (G - E), K = Sw / (Sw + Sg) (eq. 2-3 on the
+        interval; K = 1 beyond the gate while moving: the encoders are the outlier), and
+        removes K Sw of the variance; the position driven meanwhile is rotated about its
+        start by half the correction (the heading error grew along the interval).
         """
-        dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
-        sw2, sg2 = d.var_enc, self._gyro_var(dg, gyro.covered_s)
-        nu = dg - d.dtheta_enc
+        sw2, sg2 = d.var_enc, self.gyro_variance(dtheta_gyro, covered_s)
+        nu = dtheta_gyro - d.dtheta_enc
         k = sw2 / (sw2 + sg2)
-        if d.moving and nu * nu / (sw2 + sg2) > self._gate:
+        if d.moving and nu * nu / (sw2 + sg2) > self.heading_gate:
             k = 1.0
         if k == 1.0:
             self._count.odometry_heading_rejected += 1
         delta = k * nu
         self.variance = max(self.variance - k * sw2, self.params.variance_floor_rad2)
-        c, s = math.cos(0.5 * delta), math.sin(0.5 * delta)
-        ex, ey = self.x - d.x0, self.y - d.y0
-        self.x, self.y = d.x0 + c * ex - s * ey, d.y0 + s * ex + c * ey
+        self.x, self.y = d.rotate(self.x, self.y, 0.5 * delta)
         self.theta = wrap_angle(self.theta + delta)
         self._count.steps_fused += d.steps
         self._count.steps_encoder_only -= d.steps
         self._count.gyro_merges += 1
 
+    def turn(self, dtheta_gyro: float, covered_s: float) -> None:
+        self.theta = wrap_angle(self.theta + dtheta_gyro)
+        self.variance += self.gyro_variance(dtheta_gyro, covered_s)
+
     # -- message-level ---------------------------------------------------------------
     def feed(self, msg: object) -> HeadingEstimate | None:
-        """RobotOdometry -> the new estimate; GyroSample -> None; anything else: TypeError."""
+        """RobotOdometry or GyroSample -> the new estimate if an odometry step ran (or a
+        baseline was set), else None; anything else: TypeError."""
         if isinstance(msg, RobotOdometry):
             return self.feed_odometry(msg)
         if isinstance(msg, GyroSample):
-            self.feed_gyro(msg)
-            return None
+            return self.feed_gyro(msg)
         raise TypeError(f"HeadingFilter is fed RobotOdometry or GyroSample, not {type(msg)}")
 
-    def feed_gyro(self, msg: GyroSample) -> None:
-        self._count.gyro += 1
-        self._gyro.feed(msg)
+    def feed_gyro(self, msg: GyroSample) -> HeadingEstimate | None:
+        """Take a gyro sample; an estimate only if it released held odometry (``arrival``)."""
+        a = self._align.feed_gyro(msg, self)
+        return None if a is None else self._advanced(a)
 
     def feed_odometry(self, msg: RobotOdometry) -> HeadingEstimate | None:
-        """Run one step on the motion since the previous odometry; None if no step ran.
+        """Run one step on the motion since the previous odometry; None if no step ran."""
+        return self._advanced(self._align.feed_odometry(msg, self))
 
-        The gyro's change is fused only over an interval it has caught up with
-        (fusion.alignment): steps it lags behind are predicted on the encoders and
-        corrected once it catches up.
-        """
-        self._count.odometry += 1
-        step = self._odo.feed(msg)
-        if step is None:
-            if self._odo.baselined:  # first message (or a re-baseline): start here
-                d = self._align.close()
-                lost = self._align.baseline()
-                if d is not None and lost is not None:
-                    self._merge(d, lost)
-                elif lost is not None:  # odometry jumped: the gyro alone turns the heading
-                    dg = lost.angle_rad - self._bias.bias_radps * lost.covered_s
-                    self.theta = wrap_angle(self.theta + dg)
-                    self.variance += self._gyro_var(dg, lost.covered_s)
-                self.stamp_ns = msg.stamp_ns
-                return self.estimate()
+    def _advanced(self, a: Advance | None) -> HeadingEstimate | None:
+        if a is None:
             return None
-        decision, gyro = self._align.decide(step)
-        if self.params.learn_bias_at_rest:
-            self._bias.observe(step, gyro if decision == "fuse" else None)
-        stale = self._align.silent_s > self.params.gyro_timeout_s
-        if stale and not self.gyro_stale:
-            self._count.gyro_timeouts += 1
-        self.gyro_stale = stale
-        if decision == "timeout":
-            self._count.gyro_misaligned += 1
-        sw2 = self._encoder_var(step.ds_m, step.dtheta_rad)
-        if decision == "fuse" and gyro is not None:
-            dg = gyro.angle_rad - self._bias.bias_radps * gyro.covered_s
-            nu = dg - step.dtheta_rad
-            gated = nu * nu / (sw2 + self._gyro_var(dg, gyro.covered_s)) > self._gate
-            if gated and not step.at_rest:
-                decision = "postponed"
-                self._align.postpone(step, gyro, sw2, self.x, self.y)
-                self.step(step.ds_m, step.dtheta_rad, None, step.dt_s)
-            else:
-                self.step(step.ds_m, step.dtheta_rad, dg, step.dt_s)
-        else:
-            if decision in ("deferred", "merged"):
-                self._align.defer(
-                    step, self._encoder_var(step.ds_m, step.dtheta_rad), self.x, self.y
-                )
-            self.step(step.ds_m, step.dtheta_rad, None, step.dt_s)
-            if decision == "merged":
-                d = self._align.close()
-                if d is not None and gyro is not None:
-                    self._merge(d, gyro)
-        self.stamp_ns = step.t1_ns
+        self.stamp_ns = a.stamp_ns
         return self.estimate()
 
     def counters(self) -> dict[str, int | float | bool]:
-        c = self._count
+        c, a = self._count, self._align
         return {
-            "odometry": c.odometry,
-            "gyro": c.gyro,
+            "odometry": a.odo.messages,
+            "gyro": a.gyro.messages,
             "steps": c.steps,
             "steps_fused": c.steps_fused,
             "steps_encoder_only": c.steps_encoder_only,
-            "gyro_timeouts": c.gyro_timeouts,
-            "gyro_stale": self.gyro_stale,
-            "gyro_misaligned": c.gyro_misaligned,
+            "gyro_timeouts": a.gyro_timeouts,
+            "gyro_stale": a.gyro_stale,
+            "gyro_misaligned": a.misaligned,
             "gyro_merges": c.gyro_merges,
-            "gyro_postponed": self._align.postponed,
+            "gyro_postponed": a.postponed,
             "odometry_heading_rejected": c.odometry_heading_rejected,
-            "gyro_deferred_steps": self._align.deferrals,
+            "gyro_deferred_steps": a.deferrals,
             "bad_input": c.bad_input,
-            "odometry_out_of_order": self._odo.out_of_order,
-            "odometry_jumps": self._odo.jumps,
-            "gyro_out_of_order": self._gyro.out_of_order,
-            "gyro_discontinuities": self._gyro.discontinuities,
-            "gyro_bias_radps": self._bias.bias_radps,
+            "odometry_out_of_order": a.odo.out_of_order,
+            "odometry_jumps": a.odo.jumps,
+            "gyro_out_of_order": a.gyro.out_of_order,
+            "gyro_discontinuities": a.gyro.discontinuities,
+            "gyro_bias_radps": a.bias.bias_radps,
+            "odometry_dropped": a.dropped,
         }

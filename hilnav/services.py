@@ -8,6 +8,12 @@ and no threads, so the same input gives the same output (replay relies on it).
   (ir-grid-mapping eq. 1-4) -> ``heading`` at every odometry message.
 - :class:`PoseAdapter`: fusion.pose_ekf.PoseEkf, odometry + gyro + GPS (ekf-vs-cp eq.
   1-4) -> ``pose`` (frame "map") at every odometry message.
+
+  Both filters take the device messages in arrival order, as the stream drivers stamp
+  them (a burst read at once shares one stamp): each gets a fusion.arrival.ArrivalOrder,
+  and its alignment front end (fusion.alignment) hands it matched gyro/odometry
+  intervals. An odometry message's estimate may come out at the next gyro sample (the
+  message waits for the gyro to catch up).
 - :class:`LocalizationAdapter`: localization.cp.CPLocalizer, guaranteed boxes (ekf-vs-cp
   eq. 5) from bounded odometry, gyro and GPS errors, plus the other robots' boxes ->
   ``pose_box``, at most every ``publish_every_s`` of message time. The gyro is given to
@@ -25,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from fusion.arrival import ArrivalOrder
 from fusion.heading import HeadingFilter, HeadingParams
 from fusion.pose_ekf import PoseEkf, PoseEkfParams
 from hilnav.config import RobotConfig
@@ -53,86 +60,6 @@ def initial_pose(cfg: RobotConfig) -> Pose2D:
     return Pose2D(x, y, wrap_angle(math.radians(yaw_deg)))
 
 
-class GyroRestamp:
-    """Strictly increasing gyro stamps, at least a quarter of the nominal period apart.
-
-    The stream drivers stamp every message decoded from one read with that read's time,
-    so two gyro packets that arrived together share a stamp, or come microseconds apart.
-    fusion.increments.GyroDeltas drops a sample whose stamp is not newer, and takes an
-    angle change that is large for a tiny interval for a discontinuity (and replaces it
-    by rate x dt), which loses real rotation. Spacing such samples a quarter period apart
-    keeps every angle difference with a plausible interval (the restamped times catch up
-    with the real ones at the next gap); the angles themselves are untouched. Deterministic: depends only on the input sequence.
-    """
-
-    def __init__(self, rate_hz: float) -> None:
-        self.spacing_ns = int(0.25e9 / rate_hz)
-        self._last: int | None = None
-
-    def __call__(self, g: GyroSample) -> GyroSample:
-        last = self._last
-        if last is not None and g.stamp_ns < last + self.spacing_ns:
-            if g.stamp_ns < last - 1_000_000_000:
-                self._last = g.stamp_ns  # a real jump back (clock set): follow it
-                return g
-            g = GyroSample(last + self.spacing_ns, g.rate_radps, g.angle_rad, g.angle_wrapped_rad)
-        self._last = g.stamp_ns
-        return g
-
-
-class GyroFirst:
-    """Feeds a filter the gyro samples of an interval before the odometry that ends it.
-
-    Messages reach the pipeline in arrival order; after a stall (a busy machine) a burst
-    of SIPs and a burst of gyro packets arrive, each burst with one late stamp, in either
-    order. The fusion filters fuse the gyro's change *between two odometry messages* with
-    the encoders' change over the same interval, so the intervals must match:
-
-    - an odometry message is held until a gyro sample strictly newer arrives (every gyro
-      sample up to its time has then been given) or a newer odometry message does (the
-      gyro is silent: carry on without it);
-    - of several odometry messages with the same stamp (SIPs read together) only the last
-      is kept: odometry poses are cumulative, so it covers the whole burst;
-    - odometry older than the last one released is dropped (counted).
-
-    Costs at most one gyro period of latency. Deterministic: depends only on the input
-    sequence.
-    """
-
-    def __init__(self) -> None:
-        self.held: RobotOdometry | None = None
-        self._released: int | None = None
-        self.dropped = 0
-
-    def _release(self) -> list[RobotOdometry]:
-        h, self.held = self.held, None
-        if h is None:
-            return []
-        if self._released is not None and h.stamp_ns <= self._released:
-            self.dropped += 1
-            return []
-        self._released = h.stamp_ns
-        return [h]
-
-    def gyro(self, g: GyroSample) -> list[RobotOdometry]:
-        """Odometry to feed before this gyro sample."""
-        if self.held is not None and g.stamp_ns > self.held.stamp_ns:
-            return self._release()
-        return []
-
-    def odometry(self, o: RobotOdometry) -> list[RobotOdometry]:
-        """Odometry to feed now (the held one, if this one is newer)."""
-        h = self.held
-        if h is not None and o.stamp_ns < h.stamp_ns:
-            self.dropped += 1
-            return []
-        out = self._release() if h is not None and o.stamp_ns > h.stamp_ns else []
-        self.held = o
-        if h is not None and o.stamp_ns == h.stamp_ns:
-            self.dropped += 1  # the earlier one of a burst: replaced by this one
-        return out
-
-
 class HeadingAdapter:
     """fusion.heading.HeadingFilter fed odometry and gyro -> ``heading``."""
 
@@ -145,26 +72,14 @@ class HeadingAdapter:
             gyro_arw_rad_per_sqrt_s=n.gyro_arw_rad_per_sqrt_s,
             bias_min_rest_s=cfg.services.heading.bias_min_rest_s,
         )
-        self.filter = HeadingFilter(params, initial=initial_pose(cfg))
-        self.restamp = GyroRestamp(cfg.devices.gyro.rate_hz)
-        self.merge = GyroFirst()
+        arrival = ArrivalOrder(cfg.devices.gyro.rate_hz)
+        self.filter = HeadingFilter(params, initial=initial_pose(cfg), arrival=arrival)
 
     def feed(self, topic: str, msg: Any) -> Outputs:
-        if isinstance(msg, GyroSample):
-            out = self._odometry(self.merge.gyro(msg))
-            self.filter.feed_gyro(self.restamp(msg))
-            return out
-        if isinstance(msg, RobotOdometry):
-            return self._odometry(self.merge.odometry(msg))
+        if isinstance(msg, GyroSample | RobotOdometry):
+            est = self.filter.feed(msg)
+            return [] if est is None else [("heading", est)]
         return []
-
-    def _odometry(self, todo: list[RobotOdometry]) -> Outputs:
-        out: Outputs = []
-        for o in todo:
-            est = self.filter.feed_odometry(o)
-            if est is not None:
-                out.append(("heading", est))
-        return out
 
 
 class PoseAdapter:
@@ -184,29 +99,18 @@ class PoseAdapter:
             robot=cfg.name,
         )
         self.use_gps = sv.use_gps
-        self.ekf = PoseEkf(params, initial=None if sv.init_from_gps else initial_pose(cfg))
-        self.restamp = GyroRestamp(cfg.devices.gyro.rate_hz)
-        self.merge = GyroFirst()
+        initial = None if sv.init_from_gps else initial_pose(cfg)
+        arrival = ArrivalOrder(cfg.devices.gyro.rate_hz)
+        self.ekf = PoseEkf(params, initial=initial, arrival=arrival)
 
     def feed(self, topic: str, msg: Any) -> Outputs:
-        if isinstance(msg, GyroSample):
-            out = self._odometry(self.merge.gyro(msg))
-            self.ekf.feed_gyro(self.restamp(msg))
-            return out
         if isinstance(msg, GpsFix):
             if self.use_gps:
                 self.ekf.feed_gps(msg)  # the next odometry's pose carries the update
-        elif isinstance(msg, RobotOdometry):
-            return self._odometry(self.merge.odometry(msg))
+        elif isinstance(msg, GyroSample | RobotOdometry):
+            est = self.ekf.feed(msg)
+            return [] if est is None else [("pose", est)]
         return []
-
-    def _odometry(self, todo: list[RobotOdometry]) -> Outputs:
-        out: Outputs = []
-        for o in todo:
-            est = self.ekf.feed_odometry(o)
-            if est is not None:
-                out.append(("pose", est))
-        return out
 
 
 class LocalizationAdapter:

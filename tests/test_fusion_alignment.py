@@ -1,20 +1,25 @@
-"""Regression: late, bunched, stale or jumping messages never leave a heading offset.
+"""The gyro/odometry alignment front end (fusion.alignment, fusion.arrival), rule by rule,
+and regression: late, bunched, stale or jumping messages never leave a heading offset.
 
-Reproduces the demo glitch (demo-glitch.mcap, t = 68 s) with a synthetic message sequence:
-the robot turns at 1 rad/s; the host stalls 0.5 s, then delivers five SIPs all stamped with
-the late read time, then 48 gyro packets all stamped with it too (arrival order as in the
-log). The old filters fused the step ending at the burst with the few gyro samples read
-before the stall (a fraction of the rotation), then dropped the burst's rotation as
-misaligned: a permanent -25 deg offset.
+The regression reproduces the demo glitch (demo-glitch.mcap, t = 68 s) with a synthetic
+message sequence: the robot turns at 1 rad/s; the host stalls 0.5 s, then delivers five
+SIPs all stamped with the late read time, then 48 gyro packets all stamped with it too
+(arrival order as in the log). Filters that fused the step ending at the burst with the
+few gyro samples read before the stall (a fraction of the rotation), then dropped the
+burst's rotation as misaligned, kept a permanent -25 deg offset.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
 
-from fusion.heading import HeadingFilter
+from fusion.alignment import Deferred, GyroOdometryAlignment
+from fusion.arrival import ArrivalOrder
+from fusion.heading import HeadingFilter, HeadingParams
+from fusion.increments import OdometryStep
 from fusion.pose_ekf import PoseEkf
 from msgs import GyroSample, Pose2D, RobotOdometry, wrap_angle
 
@@ -100,3 +105,165 @@ def test_odometry_heading_jump_the_gyro_contradicts_leaves_no_offset(make, jump_
     ]
     f = make(initial=Pose2D())
     assert final_error(f, msgs) < math.radians(0.5)
+
+
+# -- the front end, rule by rule (a recording filter: what is it asked to do?) -----------
+
+
+class Recorder:
+    """A fusion.alignment.AlignedFilter that records the calls of the front end."""
+
+    heading_gate = 6.63  # chi-square 0.99, 1 dof
+
+    def __init__(self) -> None:
+        self.calls: list[tuple] = []
+
+    def encoder_variance(self, step: OdometryStep) -> float:
+        return (0.1 * step.dtheta_rad) ** 2 + 1e-8
+
+    def gyro_variance(self, dtheta_rad: float, dt_s: float) -> float:
+        return (0.02 * dtheta_rad) ** 2 + 1e-8
+
+    def position(self) -> tuple[float, float]:
+        return 0.0, 0.0
+
+    def predict_step(self, step: OdometryStep, dtheta_gyro: float | None, covered_s: float) -> None:
+        self.calls.append(("predict", step.t1_ns // MS, dtheta_gyro))
+
+    def correct_deferred(self, d: Deferred, dtheta_gyro: float, covered_s: float) -> None:
+        self.calls.append(("correct", d.t0_ns // MS, d.steps, dtheta_gyro))
+
+    def turn(self, dtheta_gyro: float, covered_s: float) -> None:
+        self.calls.append(("turn", dtheta_gyro))
+
+
+def front(arrival: bool = True) -> tuple[GyroOdometryAlignment, Recorder]:
+    params = HeadingParams(learn_bias_at_rest=False)
+    return GyroOdometryAlignment(params, ArrivalOrder(100.0) if arrival else None), Recorder()
+
+
+def feed(a: GyroOdometryAlignment, rec: Recorder, msgs: list[object]) -> list[int]:
+    """Feed in arrival order; the stamps (ms) of the odometry the filter took."""
+    taken = []
+    for m in msgs:
+        if isinstance(m, GyroSample):
+            adv = a.feed_gyro(m, rec)
+        else:
+            assert isinstance(m, RobotOdometry)
+            adv = a.feed_odometry(m, rec)
+        if adv is not None:
+            taken.append(adv.stamp_ns // MS)
+    return taken
+
+
+def test_gyro_burst_sharing_one_stamp_is_spaced_a_quarter_period_apart():
+    arrival = ArrivalOrder(100.0)
+    out = [arrival.gyro(gyro(t, stamp_ms=30))[1] for t in (10, 20, 30)]
+    assert [g.stamp_ns for g in out] == [30 * MS, 32_500_000, 35 * MS]
+    assert [g.angle_rad for g in out] == [gyro(t).angle_rad for t in (10, 20, 30)]
+    assert arrival.gyro(gyro(40))[1].stamp_ns == 40 * MS  # caught up at the next gap
+
+
+def test_bursts_with_one_stamp_keep_the_whole_rotation_and_the_last_odometry():
+    a, rec = front()
+    msgs: list[object] = [gyro(0), odo(0), gyro(10)]
+    msgs += [odo(t, stamp_ms=100) for t in (40, 70, 100)]  # SIPs read together
+    msgs += [gyro(t, stamp_ms=100) for t in range(20, 101, 10)]  # gyro packets read together
+    msgs += [gyro(110)]
+    assert feed(a, rec, msgs) == [0, 100]
+    assert a.dropped == 2  # the burst's earlier SIPs: the last one covers them
+    (call,) = rec.calls
+    assert call[:2] == ("predict", 100)
+    assert call[2] == pytest.approx(RATE * 0.1, abs=1e-12)  # all of it, none dropped
+    assert a.gyro.discontinuities == 0 and a.decision == "fuse"
+
+
+def test_odometry_waits_for_the_gyro_samples_arriving_after_it():
+    a, rec = front()
+    msgs: list[object] = [gyro(0), odo(0), gyro(10)]
+    msgs += [gyro(t) for t in range(20, 91, 10)]
+    msgs += [odo(100), gyro(100), gyro(110)]  # the gyro's sample of t=100 after the SIP
+    assert feed(a, rec, msgs) == [0, 100]
+    assert rec.calls == [("predict", 100, pytest.approx(RATE * 0.1, abs=1e-12))]
+    # Trusting the stamps instead, the step is fused with the gyro up to 90 ms only.
+    b, rec_b = front(arrival=False)
+    assert feed(b, rec_b, msgs) == [0, 100]
+    assert rec_b.calls == [("predict", 100, pytest.approx(RATE * 0.09, abs=1e-12))]
+
+
+def test_odometry_before_the_gyro_sample_is_taken_first_and_a_silent_gyro_does_not_block():
+    a, rec = front()
+    assert feed(a, rec, [gyro(0), odo(0)]) == []  # held until the gyro passes it
+    assert feed(a, rec, [gyro(10)]) == [0]
+    assert feed(a, rec, [odo(100)]) == []
+    assert feed(a, rec, [odo(200)]) == [100]  # the gyro is silent: a newer SIP releases it
+
+
+def test_stale_odometry_is_dropped_and_counted():
+    a, rec = front()
+    msgs: list[object] = [gyro(0), odo(0), gyro(10), odo(100)]
+    msgs += [odo(50)]  # older than the held one
+    msgs += [gyro(110), odo(80), gyro(120)]  # older than the one released
+    assert feed(a, rec, msgs) == [0, 100]
+    assert a.dropped == 2
+    assert [c[1] for c in rec.calls] == [100]  # the filter never saw the stale SIPs
+
+
+def test_gyro_clock_set_back_is_followed_not_restamped():
+    arrival = ArrivalOrder(100.0)
+    assert arrival.gyro(gyro(10_000))[1].stamp_ns == 10_000 * MS
+    assert arrival.gyro(gyro(9_999))[1].stamp_ns == 10_002_500_000  # jitter: restamped
+    assert arrival.gyro(gyro(5_000))[1].stamp_ns == 5_000 * MS  # > 1 s back: followed
+    assert arrival.gyro(gyro(5_010))[1].stamp_ns == 5_010 * MS
+
+
+def test_steps_the_gyro_lags_are_deferred_then_corrected_over_the_whole_interval():
+    a, rec = front(arrival=False)
+    feed(a, rec, [gyro(0), odo(0), odo(100), odo(200)])
+    assert a.decision == "deferred"
+    feed(a, rec, [gyro(t) for t in range(10, 301, 10)] + [odo(300)])
+    assert a.decision == "merged" and a.deferrals == 2
+    assert rec.calls[:2] == [("predict", 100, None), ("predict", 200, None)]
+    assert rec.calls[2] == ("predict", 300, None)
+    assert rec.calls[3] == ("correct", 0, 3, pytest.approx(RATE * 0.3, abs=1e-12))
+
+
+def test_a_fresh_step_the_gyro_contradicts_is_postponed_once():
+    a, rec = front(arrival=False)
+    msgs: list[object] = [gyro(0), odo(0)] + [gyro(t) for t in range(10, 101, 10)]
+    feed(a, rec, msgs + [odo(100, dtheta=0.3)])  # the SIP's heading is 0.3 rad off
+    assert a.decision == "postponed" and a.postponed == 1
+    feed(a, rec, [gyro(t) for t in range(110, 201, 10)] + [odo(200, dtheta=0.3)])
+    assert a.decision == "merged"
+    assert rec.calls[-1] == ("correct", 0, 2, pytest.approx(RATE * 0.2, abs=1e-12))
+
+
+def test_gyro_silent_beyond_max_defer_times_out_then_restarts_unchained():
+    a, rec = front(arrival=False)
+    feed(a, rec, [gyro(0), odo(0)] + [odo(t) for t in range(100, 2101, 100)])
+    assert a.decision == "timeout" and a.misaligned == 1 and a.gyro_stale
+    feed(a, rec, [gyro(2150), gyro(2200), odo(2200)])  # the gyro re-baselines: no chain yet
+    assert a.decision == "unchained" and rec.calls[-1] == ("predict", 2200, None)
+    assert a.gyro_timeouts == 1 and not a.gyro_stale
+    feed(a, rec, [gyro(2250), gyro(2300), odo(2300)])  # chained from the end of that step
+    assert a.decision == "fuse" and rec.calls[-1][2] == pytest.approx(RATE * 0.1, abs=1e-12)
+
+
+def test_an_odometry_jump_leaves_the_gyro_to_turn_over_the_lost_interval():
+    a, rec = front(arrival=False)
+    jumped = dataclasses.replace(odo(200), pose=Pose2D(50.0, 0.0, 0.0))  # a reset odometry
+    msgs: list[object] = [gyro(0), odo(0), gyro(50), gyro(100), odo(100)]
+    msgs += [gyro(150), gyro(200), jumped]
+    assert feed(a, rec, msgs) == [0, 100, 200]
+    assert a.odo.jumps == 1
+    assert rec.calls[-1] == ("turn", pytest.approx(RATE * 0.1, abs=1e-12))
+
+
+@pytest.mark.parametrize("make", [HeadingFilter, PoseEkf], ids=["heading", "pose_ekf"])
+def test_filters_in_arrival_order_return_the_estimate_when_the_gyro_releases_the_odometry(make):
+    f = make(initial=Pose2D(), arrival=ArrivalOrder(100.0))
+    assert f.feed(gyro(0)) is None and f.feed(odo(0)) is None  # held for the gyro
+    est = f.feed(gyro(10))
+    assert est is not None and est.stamp_ns == 0
+    assert f.feed(odo(100, stamp_ms=90)) is None and f.feed(odo(50)) is None
+    assert f.counters()["odometry_dropped"] == 1

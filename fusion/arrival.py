@@ -1,0 +1,83 @@
+"""Messages in arrival order, as the stream drivers stamp them, put back in stamp order.
+
+The stream drivers stamp every message decoded from one read with that read's time. On a
+loaded host a reader stalls and then delivers a burst of SIPs and a burst of gyro
+packets, each burst with one late stamp, in either order. :class:`ArrivalOrder` is the
+first stage of the gyro/odometry alignment front end (fusion.alignment), used when the
+messages come from the drivers (the pipeline); four rules:
+
+1. *Gyro stamps strictly increase*, at least a quarter of the nominal period apart: two
+   packets read together share a stamp or come microseconds apart, which
+   fusion.increments.GyroDeltas would drop (not newer) or take for a discontinuity (a
+   large angle change over a tiny interval, replaced by rate x dt: real rotation lost).
+   The angles are untouched; the restamped times catch up with the real ones at the next
+   gap. A stamp more than ``jump_back_s`` older than the last is a clock set back: it is
+   followed, not restamped.
+2. *Odometry waits for the gyro*: an odometry message is held until a gyro sample with a
+   strictly newer stamp arrives (every gyro sample up to its time has then been taken)
+   or a newer odometry message does (the gyro is silent: carry on without it). Costs at
+   most one gyro period of latency.
+3. *Of a burst of odometry with one stamp only the last is kept*: odometry poses are
+   cumulative, so it covers the whole burst.
+4. *Odometry older than the held or the last released message is dropped.*
+
+Drops under rules 3 and 4 are counted (``dropped``). Pure: no clocks, times are the
+message stamps (integer ns); the output depends only on the input sequence.
+"""
+
+from __future__ import annotations
+
+from msgs import GyroSample, RobotOdometry
+
+
+class ArrivalOrder:
+    """Gyro restamping and odometry holding (see the module docstring)."""
+
+    def __init__(self, gyro_rate_hz: float, jump_back_s: float = 1.0) -> None:
+        if not gyro_rate_hz > 0.0:
+            raise ValueError(f"ArrivalOrder: gyro_rate_hz must be > 0, got {gyro_rate_hz!r}")
+        self.spacing_ns = int(0.25e9 / gyro_rate_hz)
+        self.jump_back_ns = int(jump_back_s * 1e9)
+        self.held: RobotOdometry | None = None
+        self.dropped = 0
+        self._gyro_ns: int | None = None
+        self._released_ns: int | None = None
+
+    def gyro(self, g: GyroSample) -> tuple[RobotOdometry | None, GyroSample]:
+        """The odometry to take before this sample (rule 2), and the sample restamped (rule 1)."""
+        before = None
+        if self.held is not None and g.stamp_ns > self.held.stamp_ns:
+            before = self._release()
+        return before, self._restamp(g)
+
+    def odometry(self, o: RobotOdometry) -> RobotOdometry | None:
+        """The odometry to take now: the held one if this one is newer (this one is held)."""
+        h = self.held
+        if h is not None and o.stamp_ns < h.stamp_ns:
+            self.dropped += 1  # rule 4
+            return None
+        out = self._release() if h is not None and o.stamp_ns > h.stamp_ns else None
+        self.held = o
+        if h is not None and o.stamp_ns == h.stamp_ns:
+            self.dropped += 1  # rule 3: the earlier one of a burst, replaced by this one
+        return out
+
+    def _release(self) -> RobotOdometry | None:
+        h, self.held = self.held, None
+        if h is None:
+            return None
+        if self._released_ns is not None and h.stamp_ns <= self._released_ns:
+            self.dropped += 1  # rule 4
+            return None
+        self._released_ns = h.stamp_ns
+        return h
+
+    def _restamp(self, g: GyroSample) -> GyroSample:
+        last = self._gyro_ns
+        if last is not None and g.stamp_ns < last + self.spacing_ns:
+            if g.stamp_ns < last - self.jump_back_ns:
+                self._gyro_ns = g.stamp_ns  # the clock was set back: follow it
+                return g
+            g = GyroSample(last + self.spacing_ns, g.rate_radps, g.angle_rad, g.angle_wrapped_rad)
+        self._gyro_ns = g.stamp_ns
+        return g
