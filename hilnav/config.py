@@ -120,6 +120,10 @@ class Devices:
     gyro: GyroDevice = field(default_factory=GyroDevice)
     gps: GpsDevice = field(default_factory=GpsDevice)
 
+    def sections(self) -> list[tuple[str, Any]]:
+        """(name, section) of every device, in table order."""
+        return [(f.name, getattr(self, f.name)) for f in dataclasses.fields(self)]
+
 
 # -- geometry and noise ------------------------------------------------------------------
 _PAPER_MOUNTS_DEG = (
@@ -315,26 +319,7 @@ class RobotConfig:
     @property
     def simulated(self) -> bool:
         """True when any enabled device is served by the simulation."""
-        dv = self.devices
-        return any(d.enabled and d.port == "sim" for d in (dv.arcos, dv.ir, dv.gyro, dv.gps))
-
-    def with_ports(self, ports: dict[str, str]) -> RobotConfig:
-        """A copy with the "sim" ports replaced by the fakes' (keys as ``hilnav fake``)."""
-        dv = self.devices
-        arcos, ir, gyro, gps = dv.arcos, dv.ir, dv.gyro, dv.gps
-        if arcos.port == "sim" and "arcos" in ports:
-            arcos = dataclasses.replace(arcos, port=ports["arcos"])
-        if ir.port == "sim":
-            if ir.link == "can" and "ir_can" in ports:
-                iface, _, chan = ports["ir_can"].partition(":")
-                ir = dataclasses.replace(ir, port=chan, can_interface=iface, can_channel=chan)
-            elif ir.link == "serial" and "ir" in ports:
-                ir = dataclasses.replace(ir, port=ports["ir"])
-        if gyro.port == "sim" and "gyro" in ports:
-            gyro = dataclasses.replace(gyro, port=ports["gyro"])
-        if gps.port == "sim" and "gps" in ports:
-            gps = dataclasses.replace(gps, port=ports["gps"])
-        return dataclasses.replace(self, devices=Devices(arcos, ir, gyro, gps))
+        return any(d.enabled and d.port == "sim" for _, d in self.devices.sections())
 
 
 # -- loading -------------------------------------------------------------------------------
@@ -451,8 +436,7 @@ def _build(cls: type, data: dict[str, Any], path: str, src: str) -> Any:
 
 def _cross_checks(cfg: RobotConfig, src: str) -> None:
     d = cfg.devices
-    for dev in ("arcos", "ir", "gyro", "gps"):
-        dc = getattr(d, dev)
+    for dev, dc in d.sections():
         if dc.enabled and not dc.port and not (dev == "ir" and dc.link == "can" and dc.can_channel):
             raise ConfigError(
                 f"{src}: devices.{dev}.port = '': give the port (e.g. /dev/ttyUSB0, "
@@ -538,8 +522,7 @@ def summary(cfg: RobotConfig) -> str:
     """A few lines saying what the config will run (for ``hilnav config check``)."""
     d = cfg.devices
     lines = [f"robot {cfg.name} (config {cfg.source})"]
-    for name in ("arcos", "ir", "gyro", "gps"):
-        dc = getattr(d, name)
+    for name, dc in d.sections():
         if not dc.enabled:
             lines.append(f"  {name:6s} off")
             continue

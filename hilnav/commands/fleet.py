@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import select
 import signal
 import subprocess
@@ -32,7 +31,6 @@ import numpy as np
 from hilnav.bus import free_tcp_port
 from hilnav.errors import CliError
 
-ROOT = Path(__file__).resolve().parents[2]
 METHODS = ("ekf", "single_cp", "multi_cp")
 
 
@@ -69,13 +67,6 @@ def _parse_kills(items: list[str], names: list[str]) -> list[tuple[str, float]]:
             raise CliError(f"--kill {it!r}: no robot {name!r}; robots are {', '.join(names)}")
         out.append((name, sec))
     return out
-
-
-def _env() -> dict[str, str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    env["PYTHONUNBUFFERED"] = "1"
-    return env
 
 
 def _read_line(proc: subprocess.Popen, timeout_s: float) -> str | None:
@@ -116,75 +107,108 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--rate and --duration must be > 0")
     names = [s.name for s in paper_robots(args.robots)]
     kills = _parse_kills(args.kill, names)
-    out = args.out or Path(tempfile.mkdtemp(prefix="hilnav-fleet-"))
+    out = (args.out or Path(tempfile.mkdtemp(prefix="hilnav-fleet-"))).resolve()
     out.mkdir(parents=True, exist_ok=True)
     ports = [free_tcp_port() for _ in names]
     procs: dict[str, subprocess.Popen] = {}
     wall = args.duration / args.rate
     try:
         for i, name in enumerate(names):
-            cmd = [
-                sys.executable, "-m", "hilnav.fleet.robot",
-                "--index", str(i), "--robots", str(args.robots),
-                "--ports", ",".join(map(str, ports)), "--seed", str(args.seed),
-                "--duration", str(args.duration), "--rate", str(args.rate),
-                "--window", str(args.window), "--out", str(out),
-            ]  # fmt: skip
-            p = subprocess.Popen(
-                cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=_env(), cwd=str(ROOT)
-            )
-            procs[name] = p
-            line = _read_line(p, 60.0)
-            if line != f"READY {name}":
-                raise CliError(f"robot {name} did not start (got {line!r}); see its stderr above")
+            procs[name] = _start_robot(args, i, name, ports, out)
         t0 = time.time() + 0.5
         for p in procs.values():
             p.stdin.write(f"GO {t0!r}\n".encode())
             p.stdin.flush()
         print(f"fleet: {len(names)} robots on ports {ports}, logs in {out}", flush=True)
         deadline = t0 + wall + 30.0 + 0.05 * args.duration * len(names)
-        pending = sorted(kills, key=lambda k: k[1])
-        done: set[str] = set()
-        while time.time() < deadline:
-            running = {n: p for n, p in procs.items() if p.poll() is None and n not in done}
-            if not running:
-                break
-            now = time.time() - t0
-            while pending and now >= pending[0][1]:
-                victim, _ = pending.pop(0)
-                if procs[victim].poll() is None:
-                    procs[victim].send_signal(signal.SIGKILL)
-                    print(f"fleet: killed {victim} at {now:.1f} s", flush=True)
-            ready, _, _ = select.select([p.stdout for p in running.values()], [], [], 0.05)
-            for n, p in running.items():
-                if p.stdout in ready:
-                    line = p.stdout.readline().decode().strip()
-                    if line == f"DONE {n}" or not line:
-                        done.add(n)
-        for p in procs.values():  # everyone finished (or died): let them close
-            if p.poll() is None:
-                try:
-                    p.stdin.write(b"STOP\n")
-                    p.stdin.flush()
-                except OSError:
-                    pass
-        for p in procs.values():
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        _supervise(procs, kills, t0, deadline)
+        _finish(procs)
     finally:
-        for p in procs.values():
-            if p.poll() is None:
-                p.kill()
-        for p in procs.values():
+        _reap(procs)
+    results = _results(names, procs, out)
+    res = summarize(results, 0.1)
+    res["robots"] = [r["robot"] for r in results]
+    res["dropped"] = {r["robot"]: [d["robot"] for d in r["dropped"]] for r in results}
+    res["logs"] = sorted(str(p) for p in out.glob("*.mcap"))
+    res["steps_per_second"] = round(sum(r["steps"] for r in results) / max(wall, 1e-9), 1)
+    print(json.dumps(res))
+    return 0
+
+
+def _start_robot(
+    args: argparse.Namespace, i: int, name: str, ports: list[int], out: Path
+) -> subprocess.Popen:
+    cmd = [
+        sys.executable, "-m", "hilnav.fleet.robot",
+        "--index", str(i), "--robots", str(args.robots),
+        "--ports", ",".join(map(str, ports)), "--seed", str(args.seed),
+        "--duration", str(args.duration), "--rate", str(args.rate),
+        "--window", str(args.window), "--out", str(out),
+    ]  # fmt: skip
+    p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    line = _read_line(p, 60.0)
+    if line != f"READY {name}":
+        p.kill()
+        p.wait(10)
+        raise CliError(f"robot {name} did not start (got {line!r}); see its stderr above")
+    return p
+
+
+def _supervise(
+    procs: dict[str, subprocess.Popen], kills: list[tuple[str, float]], t0: float, deadline: float
+) -> None:
+    """Until every robot is done (or the deadline): carry out the --kill schedule."""
+    pending = sorted(kills, key=lambda k: k[1])
+    done: set[str] = set()
+    while time.time() < deadline:
+        running = {n: p for n, p in procs.items() if p.poll() is None and n not in done}
+        if not running:
+            break
+        now = time.time() - t0
+        while pending and now >= pending[0][1]:
+            victim, _ = pending.pop(0)
+            if procs[victim].poll() is None:
+                procs[victim].send_signal(signal.SIGKILL)
+                print(f"fleet: killed {victim} at {now:.1f} s", flush=True)
+        ready, _, _ = select.select([p.stdout for p in running.values()], [], [], 0.05)
+        for n, p in running.items():
+            if p.stdout in ready:
+                line = p.stdout.readline().decode().strip()
+                if line == f"DONE {n}" or not line:
+                    done.add(n)
+
+
+def _finish(procs: dict[str, subprocess.Popen]) -> None:
+    """Everyone finished (or died): tell them to close, and wait (bounded)."""
+    for p in procs.values():
+        if p.poll() is None:
             try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-            for f in (p.stdin, p.stdout):
-                if f:
-                    f.close()
+                p.stdin.write(b"STOP\n")
+                p.stdin.flush()
+            except OSError:
+                pass
+    for p in procs.values():
+        try:
+            p.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
+def _reap(procs: dict[str, subprocess.Popen]) -> None:
+    for p in procs.values():
+        if p.poll() is None:
+            p.kill()
+    for p in procs.values():
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+        for f in (p.stdin, p.stdout):
+            if f:
+                f.close()
+
+
+def _results(names: list[str], procs: dict[str, subprocess.Popen], out: Path) -> list[dict]:
     results = []
     for name in names:
         f = out / f"{name}.json"
@@ -195,15 +219,10 @@ def run(args: argparse.Namespace) -> int:
         results.append(r)
         drops = ", ".join(f"{d['robot']}@{d['sim_time_s']:.1f}s" for d in r["dropped"]) or "none"
         print(
-            f"{name}: multi CP area {r['multi_cp_area']:.2f} m^2 s, contained {r['multi_cp_contained']}/{r['steps']}, "
-            f"peer boxes {r['peer_boxes_received']}, dropped {drops}"
+            f"{name}: multi CP area {r['multi_cp_area']:.2f} m^2 s, contained "
+            f"{r['multi_cp_contained']}/{r['steps']}, peer boxes {r['peer_boxes_received']}, "
+            f"dropped {drops}"
         )
     if not results:
         raise CliError("no robot finished; nothing to report")
-    res = summarize(results, 0.1)
-    res["robots"] = [r["robot"] for r in results]
-    res["dropped"] = {r["robot"]: [d["robot"] for d in r["dropped"]] for r in results}
-    res["logs"] = sorted(str(p) for p in out.glob("*.mcap"))
-    res["steps_per_second"] = round(sum(r["steps"] for r in results) / max(wall, 1e-9), 1)
-    print(json.dumps(res))
-    return 0
+    return results

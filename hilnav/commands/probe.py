@@ -8,9 +8,9 @@ import math
 import signal
 import time
 
-from drivers.arcos.driver import ArcosDriver, ArcosOptions
 from drivers.base import DeviceError
-from hilnav.commands.probe_sensors import register_sensors
+from hilnav.commands.probe_sensors import probe_config, register_sensors
+from hilnav.devices import DEVICES
 from hilnav.errors import CliError
 from msgs import RobotInfo, RobotOdometry, to_dict
 
@@ -66,7 +66,8 @@ def probe_arcos(args: argparse.Namespace) -> int:
     drive = _parse_drive(args.drive)
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
-    driver = ArcosDriver(args.port, ArcosOptions(baud=args.baud))
+    cfg = probe_config("arcos", {"port": args.port, "baud": args.baud})
+    driver = DEVICES["arcos"].driver(cfg, None)
     try:
         info = driver.open()
     except DeviceError as exc:

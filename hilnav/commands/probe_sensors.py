@@ -15,11 +15,9 @@ import time
 from typing import Any
 
 from drivers.base import DeviceError
-from drivers.cruzcore_driver import CruzCoreDriver
-from drivers.irboard import IrBoardConfig
-from drivers.irboard.driver import IrCanDriver, IrSerialDriver
 from drivers.nmea import Datum
-from drivers.nmea.driver import NmeaDriver
+from hilnav.config import ConfigError, Geometry, RobotConfig, parse_config
+from hilnav.devices import DEVICES
 from hilnav.errors import CliError
 from msgs import GpsFix, GyroSample, IrScan, to_dict
 
@@ -121,35 +119,32 @@ def _loop(driver: Any, args: argparse.Namespace) -> int:
 
 
 def probe_ir(args: argparse.Namespace) -> int:
-    from drivers.irboard.convert import PAPER_MOUNTS
-
     if not 1 <= args.channels <= 8:
         raise CliError(f"--channels {args.channels}: an IR board has 1 to 8 channels")
-    mounts = PAPER_MOUNTS[: args.channels] + ((0.0, 0.0, 0.0),) * max(0, args.channels - 6)
-    try:
-        cfg = IrBoardConfig(
-            board_id=args.board,
-            adc_bits=args.bits,
-            vref_v=args.vref,
-            rate_hz=args.rate,
-            mounts=mounts,
-            median_window=args.median,
-        )
-    except ValueError as exc:
-        raise CliError(str(exc)) from None
+    mounts = [list(m) for m in Geometry().ir_mounts[: args.channels]]
+    mounts += [[0.0, 0.0, 0.0]] * max(0, args.channels - len(mounts))
+    ir: dict[str, Any] = {
+        "port": args.port,
+        "baud": args.baud,
+        "board_id": args.board,
+        "adc_bits": args.bits,
+        "vref_v": args.vref,
+        "rate_hz": args.rate,
+        "median_window": args.median,
+        "can_bitrate": args.bitrate,
+        "link": "serial",
+    }
     iface, sep, channel = args.port.partition(":")
     if sep and iface in CAN_INTERFACES:
-        driver: Any = IrCanDriver(iface, channel, cfg, bitrate=args.bitrate)
-    else:
-        driver = IrSerialDriver(args.port, cfg, baud=args.baud)
-    return _loop(driver, args)
+        ir.update(link="can", can_interface=iface, can_channel=channel, port=channel)
+    cfg = probe_config("ir", ir, geometry={"ir_mounts": mounts})
+    return _loop(DEVICES["ir"].driver(cfg, None), args)
 
 
 def probe_gyro(args: argparse.Namespace) -> int:
-    driver = CruzCoreDriver(
-        args.port, baud=args.baud, rate_hz=args.rate, reset_on_open=not args.no_reset
-    )
-    return _loop(driver, args)
+    cfg = probe_config("gyro", {"port": args.port, "baud": args.baud})
+    extra = {"rate_hz": args.rate, "reset_on_open": not args.no_reset}
+    return _loop(DEVICES["gyro"].driver(cfg, None, **extra), args)
 
 
 def probe_gps(args: argparse.Namespace) -> int:
@@ -160,7 +155,15 @@ def probe_gps(args: argparse.Namespace) -> int:
         except ValueError:
             raise CliError(f"--datum {args.datum!r}: expected LAT,LON in degrees") from None
         datum = Datum(lat, lon)
-    driver = NmeaDriver(
-        args.port, baud=args.baud, datum=datum, require_checksum=not args.no_checksum_ok
-    )
-    return _loop(driver, args)
+    cfg = probe_config("gps", {"port": args.port, "baud": args.baud})
+    extra = {"datum": datum, "require_checksum": not args.no_checksum_ok}
+    return _loop(DEVICES["gps"].driver(cfg, None, **extra), args)
+
+
+def probe_config(device: str, section: dict[str, Any], **tables: Any) -> RobotConfig:
+    """A robot config holding one device's settings from the command line (checked as a
+    config file is: a bad value names its key)."""
+    try:
+        return parse_config({"devices": {device: section}, **tables}, "the command line")
+    except ConfigError as exc:
+        raise CliError(str(exc)) from None
