@@ -1,1 +1,1 @@
-"""drivers layer of hilnav (see DESIGN.md)."""
+"""drivers layer of hilnav (see docs/architecture.md)."""

@@ -1,1 +1,1 @@
-"""fakes layer of hilnav (see DESIGN.md)."""
+"""fakes layer of hilnav (see docs/architecture.md)."""

@@ -1,1 +1,1 @@
-"""fusion layer of hilnav (see DESIGN.md)."""
+"""fusion layer of hilnav (see docs/architecture.md)."""

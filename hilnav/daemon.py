@@ -1,35 +1,18 @@
 """The robot daemon: device threads, one service loop, the Zenoh bus and the MCAP log.
 
-One reader thread per device (built from the device table, :mod:`hilnav.devices`) calls
-its driver's ``read`` (blocking, with a timeout; drivers reconnect by themselves) and puts
-every decoded message, and the raw bytes of every read (msgs.RawBytes), on ONE queue. One
-service loop takes them in arrival order, feeds the :class:`hilnav.pipeline.Pipeline`
-(whose mapping worker runs in its own thread), publishes and logs as the topics table
-says (:mod:`hilnav.topics`): Zenoh key ``hilnav/<robot>/<topic>``, MCAP topic
-``/<robot>/<topic>``, raw bytes on ``/<robot>/raw/<device>``. Every
-``diagnostics_period_s`` it publishes one msgs.DeviceDiagnostics per device and one
-msgs.DaemonStatus (bus, queue, faults, motion gate) on ``status``.
-
-Bus: liveliness token ``hilnav/<robot>/alive``; queryables ``query/pose``, ``query/map``,
-``query/info``; ``cmd_vel`` from fleet members goes to the Pioneer through the
-:class:`hilnav.motion.MotionGuard` (finite, clamped; its watchdog thread, outside the
-service loop, stops the robot on a command timeout or a stalled loop). The fleet's
-``pose_box`` samples feed cooperative localization; a peer is dropped when its token
-goes or its boxes stop for ``services.localization.peer_timeout_s``
-(:class:`hilnav.peers.PeerTable`).
-
-Fault containment: inbound samples are validated when decoded (msgs.decode); an
-exception while handling one message (services, log, bus) is counted per place, reported
-on ``status``, printed once per kind, and the loop goes on with the next message.
-
-Simulation: devices whose port is ``sim`` are served by ``hilnav fake`` as a child
-process (:class:`hilnav.fakeset.FakeProcess`, handed the resolved config; it dies with
-the daemon). It publishes the world's ground truth on ``hilnav/<robot>/truth``, which
-the daemon logs (it is not fed to the services).
-
-Shutdown (:meth:`Daemon.stop`, on SIGINT/SIGTERM in ``hilnav run``): stop the motors,
-stop the readers, drain the queue into the log, close the drivers (motors disabled),
-undeclare everything from Zenoh, close the log, stop the fakes.
+One reader thread per device (drivers from :mod:`hilnav.devices`) puts every decoded
+message and the raw bytes of every read on ONE queue. One service loop takes them in
+arrival order, feeds the :class:`hilnav.pipeline.Pipeline` (its mapping worker runs in its
+own thread), and publishes and logs as :mod:`hilnav.topics` says; every
+``diagnostics_period_s`` it emits a msgs.DeviceDiagnostics per device and a
+msgs.DaemonStatus. ``cmd_vel`` from the fleet reaches the wheels through the
+:class:`hilnav.motion.MotionGuard`, whose watchdog thread stops the robot on a command
+timeout or a stalled loop. The fleet's pose boxes feed cooperative localization; peers
+come and go by :class:`hilnav.peers.PeerTable`. An exception while handling one message
+is counted per place, reported on ``status`` and printed once per kind; the loop goes on.
+Devices on "sim" ports are served by a ``hilnav fake`` child that dies with the daemon.
+Stop: motors, readers, the queue drained into the log, drivers, Zenoh, log, fakes.
+See docs/daemon.md.
 """
 
 from __future__ import annotations

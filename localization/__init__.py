@@ -1,1 +1,1 @@
-"""localization layer of hilnav (see DESIGN.md)."""
+"""localization layer of hilnav (see docs/architecture.md)."""

@@ -1,1 +1,1 @@
-"""mapping layer of hilnav (see DESIGN.md)."""
+"""mapping layer of hilnav (see docs/architecture.md)."""

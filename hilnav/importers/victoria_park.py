@@ -1,6 +1,6 @@
 """``hilnav import victoria-park``: the Victoria Park data set as a hilnav MCAP log.
 
-Uses the SLAM helper's loader (``mapping.slam.victoria_park.load_victoria_park``) and its
+Uses the Victoria Park loader (``mapping.slam.victoria_park.load_victoria_park``) and its
 messages (``msgs.landmarks``). The three streams are merged in time order and logged for
 the robot ``vp`` (``--robot``) with log time = message stamp (the data set's clock, ns):
 

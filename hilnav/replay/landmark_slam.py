@@ -2,7 +2,7 @@
 
 ``hilnav.pipeline.Pipeline`` runs the Pioneer's services (odometry, gyro, GPS, IR). A log
 of a landmark data set (``hilnav import victoria-park``) carries car controls and
-landmark scans instead; :class:`LandmarkSlamPipeline` gives them to the SLAM helper's
+landmark scans instead; :class:`LandmarkSlamPipeline` gives them to the
 ``mapping.slam.service.LandmarkSlam`` (slam-ekf.txt §4: Ackermann prediction, range-bearing
 update, state augmentation) with the same ``feed(topic, msg) -> [(topic, msg)]`` contract:
 
