@@ -2,7 +2,8 @@
 
 Owns a transport opened by URL (serial path, ``tcp://``, or a file of recorded bytes) and a
 codec; ``read`` returns the decoded messages and reconnects with exponential backoff when
-the link breaks or the device stays silent for ``silence_timeout_s``. Subclasses send
+the link breaks or the device stays silent for ``silence_timeout_s``
+(drivers.reconnect: back at once when the port's path reappears). Subclasses send
 their setup commands in ``_on_open``. A file is decoded as fast as possible, without setup
 commands; at its end ``eof`` is true and the codec's pending messages are flushed.
 """
@@ -14,6 +15,7 @@ import time
 from typing import Any
 
 from drivers.base import Clock, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
+from drivers.reconnect import Reconnect, local_path
 from drivers.transport import FileTransport, LinkLost, Transport, open_transport
 
 
@@ -31,7 +33,7 @@ class StreamDriver(LinkDiagnostics):
         on_raw: RawHook | None = None,
         silence_timeout_s: float = 3.0,
         reconnect_initial_s: float = 0.25,
-        reconnect_max_s: float = 5.0,
+        reconnect_max_s: float = 1.0,
     ) -> None:
         self.url = url
         self.codec = codec
@@ -39,16 +41,13 @@ class StreamDriver(LinkDiagnostics):
         self.clock = clock
         self.on_raw = on_raw
         self.silence_timeout_s = silence_timeout_s
-        self.reconnect_initial_s = reconnect_initial_s
-        self.reconnect_max_s = reconnect_max_s
+        self._rc = Reconnect(reconnect_initial_s, reconnect_max_s, local_path(url))
         self.connected = False
         self.reconnects = 0
         self.last_error = ""
         self._t: Transport | None = None
         self._lock = threading.Lock()
         self._last_rx = 0.0
-        self._retry_at = 0.0
-        self._backoff = reconnect_initial_s
         self._last_seen_ns = 0
         self._flushed = False
 
@@ -65,7 +64,8 @@ class StreamDriver(LinkDiagnostics):
             raise DeviceError(f"{self.url}: setup failed: {exc}") from None
         self.connected = True
         self._last_rx = time.monotonic()
-        self._backoff = self.reconnect_initial_s
+        self._rc.succeeded()
+        self.last_error = ""
 
     def _on_open(self) -> None:
         """Send setup commands (subclasses)."""
@@ -89,18 +89,17 @@ class StreamDriver(LinkDiagnostics):
             if self._t is not None:
                 self._t.close()
                 self._t = None
-        self._retry_at = time.monotonic() + self._backoff
+        self._rc.lost(time.monotonic())
 
     def _try_reconnect(self) -> None:
-        if time.monotonic() < self._retry_at:
+        if not self._rc.due(time.monotonic()):
             return
         try:
             self.open()
             self.reconnects += 1
         except (DeviceError, OSError) as exc:
             self.last_error = str(exc)
-            self._backoff = min(self._backoff * 2.0, self.reconnect_max_s)
-            self._retry_at = time.monotonic() + self._backoff
+            self._rc.failed(time.monotonic())
 
     @property
     def is_file(self) -> bool:
@@ -115,7 +114,7 @@ class StreamDriver(LinkDiagnostics):
         if not self.connected:
             self._try_reconnect()
             if not self.connected:
-                time.sleep(min(timeout_s, max(0.0, self._retry_at - time.monotonic())))
+                time.sleep(self._rc.wait_s(time.monotonic(), timeout_s))
                 return []
         assert self._t is not None
         try:

@@ -25,6 +25,7 @@ from drivers.arcos.packet import ArcosPacket
 from drivers.arcos.packets import RESET_ID, SIP_MOVING, SIP_STOPPED, decode_sync2
 from drivers.arcos.params import P3DX_SH, RobotParams, params_for
 from drivers.base import Clock, CodecStats, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
+from drivers.reconnect import Reconnect, local_path
 from drivers.transport import FileTransport, LinkLost, Transport, open_transport
 from msgs import RobotInfo, RobotOdometry, VelocityCommand
 
@@ -39,7 +40,7 @@ class ArcosOptions:
     pulse_s: float = 0.4
     silence_timeout_s: float = 2.0
     reconnect_initial_s: float = 0.25
-    reconnect_max_s: float = 5.0
+    reconnect_max_s: float = 1.0
     stream_encoders: bool = False
 
 
@@ -68,8 +69,9 @@ class ArcosDriver(LinkDiagnostics):
         self._lock = threading.Lock()
         self._last_tx = 0.0
         self._last_rx = 0.0
-        self._retry_at = 0.0
-        self._backoff = self.opt.reconnect_initial_s
+        self._rc = Reconnect(
+            self.opt.reconnect_initial_s, self.opt.reconnect_max_s, local_path(url)
+        )
         self._pending: list[object] = []
         self._last_seen_ns = 0
 
@@ -90,7 +92,8 @@ class ArcosDriver(LinkDiagnostics):
             raise
         self.connected = True
         self._last_rx = time.monotonic()
-        self._backoff = self.opt.reconnect_initial_s
+        self._rc.succeeded()
+        self.last_error = ""
         return self.info
 
     def _raw_read(self, timeout_s: float) -> bytes:
@@ -182,18 +185,17 @@ class ArcosDriver(LinkDiagnostics):
             if self._t is not None:
                 self._t.close()
                 self._t = None
-        self._retry_at = time.monotonic() + self._backoff
+        self._rc.lost(time.monotonic())
 
     def _try_reconnect(self) -> None:
-        if time.monotonic() < self._retry_at:
+        if not self._rc.due(time.monotonic()):
             return
         try:
             self.open()
             self.reconnects += 1
         except (DeviceError, LinkLost, OSError) as exc:
             self.last_error = str(exc)
-            self._backoff = min(self._backoff * 2.0, self.opt.reconnect_max_s)
-            self._retry_at = time.monotonic() + self._backoff
+            self._rc.failed(time.monotonic())
 
     # -- the read loop ----------------------------------------------------------------
     def read(self, timeout_s: float) -> list[object]:
@@ -202,7 +204,7 @@ class ArcosDriver(LinkDiagnostics):
         if not self.connected:
             self._try_reconnect()
             if not self.connected:
-                time.sleep(min(timeout_s, max(0.0, self._retry_at - time.monotonic())))
+                time.sleep(self._rc.wait_s(time.monotonic(), timeout_s))
                 return out
             out, self._pending = out + self._pending, []
         now = time.monotonic()
@@ -229,7 +231,7 @@ class ArcosDriver(LinkDiagnostics):
             if isinstance(msg, ArcosPacket):
                 if msg.packet_id == RESET_ID:
                     self._drop_link(f"{self.url}: controller reset (packet 0xFF)")
-                    self._retry_at = 0.0
+                    self._rc.retry_at = 0.0
                 continue
             if isinstance(msg, RobotOdometry):
                 self._last_seen_ns = msg.stamp_ns

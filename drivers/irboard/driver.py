@@ -18,6 +18,7 @@ from drivers.irboard.canframe import SAMPLE_ID_BASE, pack_raw_frame, pack_set_ra
 from drivers.irboard.codec import IrCanCodec, IrSerialCodec
 from drivers.irboard.convert import IrBoardConfig
 from drivers.irboard.serialframe import set_rate_command
+from drivers.reconnect import Reconnect, local_path
 from drivers.stream import StreamDriver
 from msgs import IrScan
 
@@ -75,8 +76,7 @@ class IrCanDriver(LinkDiagnostics):
         self.reconnects = 0
         self.last_error = ""
         self._last_rx = 0.0
-        self._retry_at = 0.0
-        self._backoff = 0.25
+        self._rc = Reconnect(path=local_path(channel) if interface == "slcan" else None)
         self._last_seen_ns = 0
 
     def open(self) -> None:
@@ -99,6 +99,8 @@ class IrCanDriver(LinkDiagnostics):
             ) from None
         self.connected = True
         self._last_rx = time.monotonic()
+        self._rc.succeeded()
+        self.last_error = ""
         self.set_rate(self.config.rate_hz)
 
     def set_rate(self, rate_hz: int) -> bool:
@@ -114,16 +116,15 @@ class IrCanDriver(LinkDiagnostics):
 
     def read(self, timeout_s: float) -> list[IrScan]:
         if not self.connected:
-            if time.monotonic() >= self._retry_at:
+            if self._rc.due(time.monotonic()):
                 try:
                     self.open()
                     self.reconnects += 1
                 except DeviceError as exc:
                     self.last_error = str(exc)
-                    self._backoff = min(self._backoff * 2, 5.0)
-                    self._retry_at = time.monotonic() + self._backoff
+                    self._rc.failed(time.monotonic())
             if not self.connected:
-                time.sleep(min(timeout_s, max(0.0, self._retry_at - time.monotonic())))
+                time.sleep(self._rc.wait_s(time.monotonic(), timeout_s))
                 return []
         assert self.bus is not None
         out: list[IrScan] = []
@@ -160,7 +161,7 @@ class IrCanDriver(LinkDiagnostics):
         self.last_error = why
         self.connected = False
         self.close()
-        self._retry_at = time.monotonic() + self._backoff
+        self._rc.lost(time.monotonic())
 
     def close(self) -> None:
         self.connected = False
