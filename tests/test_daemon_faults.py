@@ -92,12 +92,14 @@ def test_hostile_commands_never_move_the_robot_nor_stop_the_loop(robot):
     ]
     box = {"stamp_ns": 2**64, "robot": "operator", "x": {"lo": 0, "hi": 1},
            "y": {"lo": 0, "hi": 1}, "theta": {"lo": 0, "hi": 1}}  # fmt: skip
+    block = zenoh.CongestionControl.BLOCK  # count every sample: none dropped on the way
     for payload in bad:
-        raw.put(key("r1", "cmd_vel"), payload, attachment=b"operator")
-    raw.put(key("operator", "pose_box"), json.dumps(box).encode(), attachment=b"operator")
+        raw.put(key("r1", "cmd_vel"), payload, attachment=b"operator", congestion_control=block)
+    raw.put(key("operator", "pose_box"), json.dumps(box).encode(), attachment=b"operator",
+            congestion_control=block)  # fmt: skip
     for i in range(10_000):  # a flood of foreign and malformed samples
         raw.put(key("r1", "cmd_vel"), b"{" if i % 2 else json.dumps(go).encode(),
-                attachment=b"operator" if i % 2 else b"mallory")  # fmt: skip
+                attachment=b"operator" if i % 2 else b"mallory", congestion_control=block)  # fmt: skip
     assert _wait(lambda: d.bus.stats.malformed >= len(bad) + 1 + 5000, 20.0), d.bus.stats
     assert d.bus.stats.foreign >= 5000
     processed = d.stats.processed
