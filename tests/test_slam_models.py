@@ -14,8 +14,8 @@ from mapping.slam.models import (
     UnicycleModel,
     inverse_observe,
     observe,
-    wrap,
 )
+from numerics.angles import wrap
 
 EPS = 1e-6
 
