@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numjac import numeric_jacobian
 
 import msgs
 from numerics import ekf
@@ -27,17 +28,6 @@ from numerics.motion import (
 
 ROOT = Path(__file__).resolve().parents[1]
 angles = st.floats(-1e6, 1e6, allow_nan=False)
-
-
-def _num_jac(f, v, h=1e-7):
-    """Central differences, one column per component of v."""
-    v = np.asarray(v, float)
-    cols = []
-    for i in range(v.size):
-        dv = np.zeros_like(v)
-        dv[i] = h
-        cols.append((np.asarray(f(v + dv)) - np.asarray(f(v - dv))) / (2 * h))
-    return np.stack(cols, axis=-1)
 
 
 # -- angles ---------------------------------------------------------------------------
@@ -107,15 +97,15 @@ def _samples(seed, n=40):
 def test_motion_jacobians_match_finite_differences(kappa, chord):
     for s, u in _samples(31):
         f, g = motion_jacobians(s, u, kappa, chord)
-        nf = _num_jac(lambda v, u=u: motion(v, u, kappa, chord), s)
-        ng = _num_jac(lambda v, s=s: motion(s, v, kappa, chord), u)
+        nf = numeric_jacobian(lambda v, u=u: motion(v, u, kappa, chord), s)
+        ng = numeric_jacobian(lambda v, s=s: motion(s, v, kappa, chord), u)
         np.testing.assert_allclose(f, nf, atol=1e-6)
         np.testing.assert_allclose(g, ng, atol=1e-6)
 
 
 def test_wheels_jacobian_matches_finite_differences():
     for dl, dr in np.random.default_rng(32).uniform(-0.2, 0.2, (20, 2)):
-        nj = _num_jac(lambda w: wheels_to_step(w[0], w[1], E), [dl, dr])
+        nj = numeric_jacobian(lambda w: wheels_to_step(w[0], w[1], E), [dl, dr])
         np.testing.assert_allclose(wheels_jacobian(E), nj, atol=1e-7)
 
 
