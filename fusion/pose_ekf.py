@@ -98,6 +98,7 @@ from msgs import (
     RobotOdometry,
     wrap_angle,
 )
+from numerics.ekf import predict_covariance
 
 NS = 1e-9
 __all__ = ["DEG", "PoseEkf", "PoseEkfParams", "UpdateResult"]
@@ -271,7 +272,7 @@ class PoseEkf:
             )
             f[3, 3] = f[4, 4] = a
             q[3, 3] = q[4, 4] = qb
-        self.P = f @ self.P @ f.T + g @ qu @ g.T + q
+        self.P = predict_covariance(self.P, f, g, qu) + q
         self.P = 0.5 * (self.P + self.P.T)
         self._count.predictions += 1
         return result
