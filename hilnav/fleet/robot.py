@@ -42,7 +42,7 @@ import numpy as np
 from fakes.world.paper_scenario import paper_robots, simulate
 from hilnav.bus import Bus, ZenohSettings
 from hilnav.fleet.paper import METHODS, PaperRobot
-from msgs import GroundTruth, Pose2D, PoseBox
+from msgs import GroundTruth, Pose2D, PoseBox, wrap_angle
 
 try:  # the log helper's writer; mcap directly if it is not there
     from hilnav.log.writer import LogWriter
@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
             truth = GroundTruth(
                 st,
                 me,
-                Pose2D(float(t[0]), float(t[1]), float(np.arctan2(np.sin(t[2]), np.cos(t[2])))),
+                Pose2D(float(t[0]), float(t[1]), wrap_angle(float(t[2]))),
             )
             for topic, m in [
                 *own,
