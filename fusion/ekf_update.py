@@ -1,9 +1,10 @@
 """Measurement update, gating and counters shared by the pose EKF (ekf-vs-cp eq. 4).
 
 - :func:`chi2_gate`: the chi-square quantile a measurement's NIS is compared with;
-- :func:`joseph_update`: Kalman update in Joseph form P = (I - K H) P (I - K H)^T + K R K^T,
-  symmetrised, with a Cholesky check that repairs a covariance that lost positive
-  definiteness (eigenvalues clipped at 1e-12);
+- :func:`joseph_update`: the gated Kalman update: NIS and Joseph form
+  P = (I - K H) P (I - K H)^T + K R K^T from numerics.ekf, then symmetrised, with a
+  Cholesky check that repairs a covariance that lost positive definiteness (eigenvalues
+  clipped at 1e-12);
 - :class:`UpdateResult`, :class:`EkfCounters`: what one measurement did, and the counts
   the daemon publishes as diagnostics.
 """
@@ -15,6 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import chi2
+
+from numerics import ekf
 
 
 def chi2_gate(probability: float | None, dof: int) -> float:
@@ -52,16 +55,11 @@ def joseph_update(
     x: np.ndarray, p: np.ndarray, nu: np.ndarray, hj: np.ndarray, r: np.ndarray, gate: float
 ) -> tuple[np.ndarray, np.ndarray, float, bool, bool]:
     """(x', P', NIS, accepted, repaired); x, P unchanged when gated out (NIS > gate)."""
-    ph = p @ hj.T
-    s = hj @ ph + r
-    s_inv = np.linalg.inv(s)
-    nis = float(nu @ s_inv @ nu)
+    ph, _, s_inv = ekf.innovation(p, hj, r)
+    nis = ekf.nis(nu, s_inv)
     if nis > gate:
         return x, p, nis, False, False
-    k = ph @ s_inv
-    x = x + k @ nu
-    ikh = np.eye(p.shape[0]) - k @ hj
-    pj = ikh @ p @ ikh.T + k @ r @ k.T
+    x, pj = ekf.joseph_update(x, p, nu, hj, r, ph, s_inv)
     pj = 0.5 * (pj + pj.T)
     repaired = not is_pd(pj)
     if repaired:

@@ -1,20 +1,12 @@
 """Motion and measurement models of the pose EKF, with their Jacobians (ekf-vs-cp eq. 1-3).
 
-Differential drive, ekf-vs-cp.txt eq. (1): wheel displacements (dl, dr) give the step
-    ds = (dr + dl) / 2,    dtheta = (dr - dl) / e          (e: wheel base)
-and eq. (2) moves the pose by ds along a heading inside the step:
-    x' = x + ds cos(theta + c dtheta)
-    y' = y + ds sin(theta + c dtheta)
-    theta' = theta + dtheta
-The paper prints c = 1 (heading at the end of the step); c = 1/2 (the midpoint, default
-here) is exact for a constant-curvature step when ds is the chord, which is what
-fusion.increments produces, and second-order accurate otherwise.
-
-Jacobians (derived here, checked against finite differences in tests/test_fusion_pose_ekf):
-with a = theta + c dtheta,
-    F = d f / d(x, y, theta)  = [[1, 0, -ds sin a], [0, 1, ds cos a], [0, 0, 1]]
-    G = d f / d(ds, dtheta)   = [[cos a, -c ds sin a], [sin a, c ds cos a], [0, 1]]
-    J = d(ds, dtheta) / d(dl, dr) = [[1/2, 1/2], [-1/e, 1/e]]
+Differential drive, eq. (1)-(2), from numerics.motion (Jacobians F, G, J there, checked
+against finite differences in tests/test_numerics.py): wheel displacements (dl, dr) give
+the step u = (ds, dtheta), and eq. (2) moves the pose by ds along the heading
+theta + c dtheta. The paper prints c = 1 (heading at the end of the step); c = 1/2 (the
+midpoint, default here) is exact for a constant-curvature step when ds is the chord,
+which is what fusion.increments produces, and second-order accurate otherwise. The pose
+EKF keeps theta wrapped to (-pi, pi], so :func:`motion` wraps it.
 
 Wheel noise: each wheel's displacement error is white with variance k^2 |d| + floor^2
 (slip and tread deformation grow with the distance rolled; Chong & Kleeman's
@@ -39,23 +31,23 @@ import math
 
 import numpy as np
 
-from msgs import wrap_angle
+from numerics.angles import wrap_angle
+from numerics.motion import motion as unwrapped_motion
+from numerics.motion import motion_jacobians, step_to_wheels, wheels_jacobian, wheels_to_step
 
-
-def wheels_to_step(dl: float, dr: float, wheelbase_m: float) -> np.ndarray:
-    """Eq. (1): (ds, dtheta) of wheel displacements (dl, dr) in metres."""
-    return np.array([0.5 * (dr + dl), (dr - dl) / wheelbase_m])
-
-
-def step_to_wheels(ds: float, dtheta: float, wheelbase_m: float) -> np.ndarray:
-    """Inverse of eq. (1): wheel displacements (dl, dr) of a step (ds, dtheta)."""
-    h = 0.5 * wheelbase_m * dtheta
-    return np.array([ds - h, ds + h])
-
-
-def wheels_jacobian(wheelbase_m: float) -> np.ndarray:
-    """J = d(ds, dtheta) / d(dl, dr)."""
-    return np.array([[0.5, 0.5], [-1.0 / wheelbase_m, 1.0 / wheelbase_m]])
+__all__ = [
+    "biased_position_measurement",
+    "gauss_markov",
+    "heading_measurement",
+    "motion",
+    "motion_jacobians",
+    "position_measurement",
+    "step_covariance",
+    "step_to_wheels",
+    "wheel_covariance",
+    "wheels_jacobian",
+    "wheels_to_step",
+]
 
 
 def wheel_covariance(dl: float, dr: float, k_m_per_sqrt_m: float, floor_m: float) -> np.ndarray:
@@ -82,24 +74,10 @@ def step_covariance(
 
 
 def motion(state: np.ndarray, u: np.ndarray, c: float = 0.5) -> np.ndarray:
-    """Eq. (2): the pose after step u = (ds, dtheta); theta wrapped."""
-    x, y, th = state
-    ds, dth = u
-    a = th + c * dth
-    return np.array([x + ds * math.cos(a), y + ds * math.sin(a), wrap_angle(th + dth)])
-
-
-def motion_jacobians(
-    state: np.ndarray, u: np.ndarray, c: float = 0.5
-) -> tuple[np.ndarray, np.ndarray]:
-    """(F, G): Jacobians of :func:`motion` with respect to the state and to u."""
-    th = state[2]
-    ds, dth = u
-    a = th + c * dth
-    ca, sa = math.cos(a), math.sin(a)
-    f = np.array([[1.0, 0.0, -ds * sa], [0.0, 1.0, ds * ca], [0.0, 0.0, 1.0]])
-    g = np.array([[ca, -c * ds * sa], [sa, c * ds * ca], [0.0, 1.0]])
-    return f, g
+    """Eq. (2): the pose after step u = (ds, dtheta), heading point c; theta wrapped."""
+    out = unwrapped_motion(state, u, c)
+    out[2] = wrap_angle(out[2])
+    return out
 
 
 def position_measurement(

@@ -55,6 +55,7 @@ from fusion.ekf_update import EkfCounters, UpdateResult, is_pd, joseph_update, r
 from fusion.increments import OdometryStep
 from fusion.pose_ekf_params import PoseEkfParams
 from msgs import Interval, Pose2D, PoseBox, PoseEstimate, wrap_angle
+from numerics.ekf import predict_covariance
 
 
 class PoseEkfCore:
@@ -204,7 +205,7 @@ class PoseEkfCore:
             )
             f[3, 3] = f[4, 4] = a
             q[3, 3] = q[4, 4] = qb
-        self.P = f @ self.P @ f.T + g @ qu @ g.T + q
+        self.P = predict_covariance(self.P, f, g, qu) + q
         self.P = 0.5 * (self.P + self.P.T)
         self._count.predictions += 1
         return result

@@ -20,13 +20,13 @@ import math
 import tomllib
 import typing
 from dataclasses import dataclass, field
-from functools import cache
 from pathlib import Path
 from typing import Any
 
 from drivers.irboard import IrBoardConfig
 from hilnav.bus import ZenohSettings, check_name
 from hilnav.cmdvel import CmdVelLimits
+from msgs.typed import TypedReader, hints, join
 
 DEG = math.pi / 180.0
 
@@ -323,11 +323,6 @@ class RobotConfig:
 
 
 # -- loading -------------------------------------------------------------------------------
-@cache
-def _hints(cls: type) -> dict[str, Any]:
-    return typing.get_type_hints(cls)
-
-
 def _type_word(tp: Any) -> str:
     origin = typing.get_origin(tp)
     if origin is tuple:
@@ -342,84 +337,83 @@ def _type_word(tp: Any) -> str:
     )
 
 
-def _convert(tp: Any, value: Any, path: str, src: str) -> Any:
-    def bad(expect: str) -> ConfigError:
-        return ConfigError(f"{src}: {path} = {value!r}: expected {expect}")
+class _Loader(TypedReader):
+    """The config's policy over msgs.typed: ConfigError naming the file, the key, the
+    value and the fix; finite floats; unknown keys refused with a did-you-mean; each
+    field's ``check`` metadata run; ``internal`` fields not settable from the file."""
 
-    origin = typing.get_origin(tp)
-    if origin is tuple:
-        args = typing.get_args(tp)
-        if not isinstance(value, list):
-            raise bad(_type_word(tp) + f", e.g. {path.rsplit('.', 1)[-1]} = [...]")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_convert(args[0], v, f"{path}[{i}]", src) for i, v in enumerate(value))
-        if len(value) != len(args):
-            raise bad(f"{len(args)} values, got {len(value)}")
-        return tuple(
-            _convert(a, v, f"{path}[{i}]", src)
-            for i, (a, v) in enumerate(zip(args, value, strict=True))
-        )
-    if origin is dict or tp is dict:
-        if not isinstance(value, dict):
-            raise bad("a table")
-        return dict(value)
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise bad("a number")
-        if not math.isfinite(value):
-            raise bad("a finite number")
-        return float(value)
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise bad("an integer")
-        return value
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise bad("true or false")
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            raise bad('a string in quotes, e.g. "..."')
-        return value
-    if tp is Any:
-        return value
-    raise bad(str(tp))  # pragma: no cover - a schema bug
+    error = ConfigError
 
+    def __init__(self, src: str) -> None:
+        self.src = src
 
-def _build(cls: type, data: dict[str, Any], path: str, src: str) -> Any:
-    hints = _hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls) if not f.metadata.get("internal")}
-    for k in data:
-        if k not in fields:
-            full = f"{path}.{k}" if path else k
-            close = difflib.get_close_matches(k, list(fields), n=1, cutoff=0.6)
-            hint = (
-                f"did you mean {(path + '.') if path else ''}{close[0]}?"
-                if close
-                else f"known keys{' of [' + path + ']' if path else ''}: {', '.join(fields)}"
+    def bad(self, path: str, value: Any, expect: str) -> ConfigError:
+        return ConfigError(f"{self.src}: {path} = {value!r}: expected {expect}")
+
+    def fail(self, kind: str, tp: Any, value: Any, path: str) -> ConfigError:
+        if kind == "list":
+            return self.bad(
+                path, value, _type_word(tp) + f", e.g. {path.rsplit('.', 1)[-1]} = [...]"
             )
-            raise ConfigError(f"{src}: unknown key {full!r}; {hint}")
-    kwargs: dict[str, Any] = {}
-    for name, f in fields.items():
-        if name not in data:
-            continue
-        full = f"{path}.{name}" if path else name
-        tp = hints[name]
-        value = data[name]
-        if dataclasses.is_dataclass(tp):
-            if not isinstance(value, dict):
-                raise ConfigError(
-                    f"{src}: {full} = {value!r}: expected a table, e.g. [{full}] on its own line"
+        if kind == "length":
+            return self.bad(path, value, f"{len(typing.get_args(tp))} values, got {len(value)}")
+        if kind == "mapping":
+            return self.bad(path, value, "a table")
+        if kind == "literal":
+            return self.bad(path, value, "one of " + ", ".join(map(repr, typing.get_args(tp))))
+        return self.bad(path, value, _type_word(tp))
+
+    def scalar(self, tp: Any, value: Any, path: str) -> Any:
+        if tp is float:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise self.bad(path, value, "a number")
+            if not math.isfinite(value):
+                raise self.bad(path, value, "a finite number")
+            return float(value)
+        if tp is int:
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise self.bad(path, value, "an integer")
+            return value
+        if tp is bool:
+            if not isinstance(value, bool):
+                raise self.bad(path, value, "true or false")
+            return value
+        if tp is str:
+            if not isinstance(value, str):
+                raise self.bad(path, value, 'a string in quotes, e.g. "..."')
+            return value
+        raise self.bad(path, value, str(tp))  # pragma: no cover - a schema bug
+
+    def record(self, cls: type, value: Any, path: str) -> Any:
+        if not isinstance(value, dict):
+            raise self.bad(path, value, f"a table, e.g. [{path}] on its own line")
+        fields = {f.name: f for f in dataclasses.fields(cls) if not f.metadata.get("internal")}
+        for k in value:
+            if k not in fields:
+                close = difflib.get_close_matches(k, list(fields), n=1, cutoff=0.6)
+                hint = (
+                    f"did you mean {join(path, close[0])}?"
+                    if close
+                    else f"known keys{' of [' + path + ']' if path else ''}: {', '.join(fields)}"
                 )
-            kwargs[name] = _build(tp, value, full, src)
-            continue
+                raise ConfigError(f"{self.src}: unknown key {join(path, k)!r}; {hint}")
+        kwargs: dict[str, Any] = {}
+        for name, f in fields.items():
+            if name in value:
+                kwargs[name] = self._field(f, hints(cls)[name], value[name], join(path, name))
+        return cls(**kwargs)
+
+    def _field(self, f: dataclasses.Field, tp: Any, value: Any, full: str) -> Any:
+        """One field: read, with the default as the example of a fix, then checked."""
+        if dataclasses.is_dataclass(tp):
+            return self.record(tp, value, full)
         try:
-            conv = _convert(tp, value, full, src)
+            conv = self.read(tp, value, full)
         except ConfigError as exc:
             d = f.default
             if isinstance(d, bool | int | float | str) and "e.g." not in str(exc):
                 toml = str(d).lower() if isinstance(d, bool) else repr(d).replace("'", '"')
-                raise ConfigError(f"{exc}, e.g. {name} = {toml}") from None
+                raise ConfigError(f"{exc}, e.g. {f.name} = {toml}") from None
             raise
         chk = f.metadata.get("check")
         if chk is not None:
@@ -429,9 +423,13 @@ def _build(cls: type, data: dict[str, Any], path: str, src: str) -> Any:
             except (TypeError, ValueError, IndexError):
                 ok = False
             if not ok:
-                raise ConfigError(f"{src}: {full} = {value!r}: {problem}")
-        kwargs[name] = conv
-    return cls(**kwargs)
+                raise ConfigError(f"{self.src}: {full} = {value!r}: {problem}")
+        return conv
+
+
+def _build(cls: type, data: dict[str, Any], path: str, src: str) -> Any:
+    """``cls`` from the TOML table ``data`` at ``path`` of the file ``src``."""
+    return _Loader(src).record(cls, data, path)
 
 
 def _cross_checks(cfg: RobotConfig, src: str) -> None:

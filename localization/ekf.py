@@ -5,8 +5,8 @@ State s = (x, y, theta) (theta kept continuous), input the wheel displacements
 u = (dSr, dSl) with per-wheel noise sigma = abs + rel * |dS| (eq. (1)-(2) through
 ``localization.odometry``); measurements: GPS position (h = (x, y)) and a heading
 (h = theta, e.g. the gyro's angle). Prediction ``P = A P A^T + W Q W^T``; update with
-the Kalman gain, Joseph form for symmetry. The 3-sigma box the paper compares with CP
-is ``mean +/- 3 sqrt(diag P)``.
+the Kalman gain, Joseph form for symmetry (both from numerics.ekf). The 3-sigma box the
+paper compares with CP is ``mean +/- 3 sqrt(diag P)``.
 
 Message-level API::
 
@@ -38,6 +38,7 @@ from msgs import (
     RobotOdometry,
     wrap_angle,
 )
+from numerics import ekf
 
 
 @dataclass(frozen=True)
@@ -85,17 +86,14 @@ class EkfLocalizer:
         a, w = motion_jacobians(self.s, u, c.wheelbase_m, c.kappa, c.chord)
         q = np.diag(np.square(c.wheel_sigma_abs_m + c.wheel_sigma_rel * np.abs(u)))
         self.s = motion(self.s, u, c.wheelbase_m, c.kappa, c.chord)
-        self.P = a @ self.P @ a.T + w @ q @ w.T
+        self.P = ekf.predict_covariance(self.P, a, w, q)
 
     def _update(self, z: np.ndarray, h: np.ndarray, hx: np.ndarray, r: np.ndarray) -> float:
         """Linear-in-state update; returns the innovation's Mahalanobis distance^2."""
         y = z - hx
-        s = h @ self.P @ h.T + r
-        k = self.P @ h.T @ np.linalg.inv(s)
-        self.s = self.s + k @ y
-        i_kh = np.eye(3) - k @ h
-        self.P = i_kh @ self.P @ i_kh.T + k @ r @ k.T
-        return float(y @ np.linalg.solve(s, y))
+        ph, _, s_inv = ekf.innovation(self.P, h, r)
+        self.s, self.P = ekf.joseph_update(self.s, self.P, y, h, r, ph, s_inv)
+        return ekf.nis(y, s_inv)
 
     def update_gps(self, east: float, north: float, sigma: float | None = None) -> float:
         sg = self.cfg.gps_sigma_m if sigma is None else sigma

@@ -64,6 +64,7 @@ from mapping.ir_inverse import (
     scan_kinds,
 )
 from msgs import AssociationReport, HeadingEstimate, IrScan, Pose2D
+from numerics.angles import wrap, wrap_angles
 
 
 @dataclass(frozen=True)
@@ -126,12 +127,8 @@ def _relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(-a) (+) b: pose b in the frame of pose a."""
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     dx, dy = b[..., 0] - a[..., 0], b[..., 1] - a[..., 1]
-    dth = np.angle(np.exp(1j * (b[..., 2] - a[..., 2])))
+    dth = wrap_angles(b[..., 2] - a[..., 2])
     return np.stack([c * dx + s * dy, -s * dx + c * dy, dth], axis=-1)
-
-
-def _wrap(a: np.ndarray | float) -> np.ndarray:
-    return np.angle(np.exp(1j * np.asarray(a)))
 
 
 def _systematic(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -194,7 +191,7 @@ class SampleAssociation:
     @property
     def pose(self) -> Pose2D:
         e = self._estimate if self._estimate is not None else np.zeros(3)
-        return Pose2D(float(e[0]), float(e[1]), float(_wrap(e[2])))
+        return Pose2D(float(e[0]), float(e[1]), float(wrap(e[2])))
 
     @property
     def particles(self) -> np.ndarray:
@@ -450,16 +447,16 @@ class SampleAssociation:
 
     @staticmethod
     def _correction(new: np.ndarray, old: np.ndarray) -> np.ndarray:
-        return np.array([new[0] - old[0], new[1] - old[1], float(_wrap(new[2] - old[2]))])
+        return np.array([new[0] - old[0], new[1] - old[1], float(wrap(new[2] - old[2]))])
 
     @staticmethod
     def _mahalanobis2(parts: np.ndarray, w: np.ndarray, pose: np.ndarray) -> float:
         """Squared Mahalanobis distance of ``pose`` from the weighted samples' mean."""
         mean, _ = SampleAssociation._mean_std(parts, w)
         d = parts - mean
-        d[:, 2] = _wrap(d[:, 2])
+        d[:, 2] = wrap(d[:, 2])
         cov = (w[:, None] * d).T @ d + np.diag([1e-6, 1e-6, 1e-8])
-        dev = np.array([pose[0] - mean[0], pose[1] - mean[1], float(_wrap(pose[2] - mean[2]))])
+        dev = np.array([pose[0] - mean[0], pose[1] - mean[1], float(wrap(pose[2] - mean[2]))])
         return float(dev @ np.linalg.solve(cov, dev))
 
     @staticmethod
@@ -468,7 +465,7 @@ class SampleAssociation:
         my = float(np.sum(w * parts[:, 1]))
         mt = float(np.angle(np.sum(w * np.exp(1j * parts[:, 2]))))
         dx, dy = parts[:, 0] - mx, parts[:, 1] - my
-        dt = _wrap(parts[:, 2] - mt)
+        dt = wrap(parts[:, 2] - mt)
         std = np.sqrt([np.sum(w * dx**2), np.sum(w * dy**2), np.sum(w * dt**2)])
         return np.array([mx, my, mt]), std
 
@@ -481,7 +478,7 @@ class SampleAssociation:
         trav = np.array(r.travel[a:n])
         span = trav[-1] - trav[0]
         f = (trav - trav[0]) / span if span > 1e-9 else np.ones(len(trav))
-        dth = float(_wrap(corrected[2] - poses[-1, 2]))
+        dth = float(wrap(corrected[2] - poses[-1, 2]))
         steps = np.diff(poses[:, :2], axis=0)
         ang = f[1:] * dth
         c, s = np.cos(ang), np.sin(ang)

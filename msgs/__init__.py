@@ -1,18 +1,21 @@
-"""Typed messages shared by every layer of hilnav (layer 1: no I/O, no imports but stdlib).
+"""Typed messages shared by every layer of hilnav (layer 1: no I/O; stdlib and the
+numpy-free numerics.angles only).
 
 SI units throughout (metres, radians, seconds, volts); stamps are integer nanoseconds.
+``wrap_angle`` is numerics.angles.wrap_angle, re-exported for every layer above.
 """
 
 from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, schema_name, to_dict
 from msgs.diagnostics import DaemonStatus, DeviceDiagnostics
 from msgs.estimates import HeadingEstimate, PoseBox, PoseEstimate
-from msgs.geometry import Interval, Pose2D, wrap_angle
+from msgs.geometry import Interval, Pose2D
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
 from msgs.relative import RelativeMeasurement
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
 from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
+from numerics.angles import wrap_angle
 
 __all__ = [
     "AssociationReport",

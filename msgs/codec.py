@@ -9,8 +9,10 @@ outside: payloads over ``max_bytes`` or nested deeper than Python can parse are 
 integers must fit in 64 bits (MCAP and Zenoh stamps are uint64), ``*_ns`` stamps must lie
 in ``[0, 2**63)``, and a class that sets ``FLOATS = "finite"`` (commands) or
 ``FLOATS = "no_nan"`` (pose boxes, whose heading may be unbounded) gets every float of
-it, nested ones included, checked. ``json_schema`` derives a JSON Schema from the type hints, for
-the MCAP schema records. ``bytes`` fields travel as base64 strings (as Foxglove expects).
+it, nested ones included, checked. The walk over the type hints is msgs.typed's (shared
+with the config loader); these checks are the codec's policy on it. ``json_schema``
+derives a JSON Schema from the type hints, for the MCAP schema records. ``bytes`` fields
+travel as base64 strings (as Foxglove expects).
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ import types
 import typing
 from functools import cache
 from typing import Any, TypeVar
+
+from msgs.typed import TypedReader, hints, join
 
 T = TypeVar("T")
 
@@ -62,52 +66,61 @@ def encode(msg: Any) -> bytes:
     return json.dumps(_plain(msg), separators=(",", ":"), allow_nan=False).encode("utf-8")
 
 
-@cache
-def _hints(cls: type) -> dict[str, Any]:
-    return typing.get_type_hints(cls)
+class _Decoder(TypedReader):
+    """The codec's policy over msgs.typed: DecodeError naming the field; integers in 64
+    bits, ``*_ns`` stamps not negative; floats from numbers or "nan"/"inf"/"-inf", checked
+    by the ``FLOATS`` policy of the outermost class that sets one; bytes from base64;
+    unknown keys ignored (newer senders), missing fields without a default refused."""
 
+    error = DecodeError
 
-def _build(tp: Any, value: Any, path: str, floats: str = "") -> Any:
-    origin = typing.get_origin(tp)
-    if tp is Any:
-        return value
-    if origin in (typing.Union, types.UnionType):
-        args = typing.get_args(tp)
-        if value is None and type(None) in args:
-            return None
-        errors = []
-        for arg in args:
-            if arg is type(None):
-                continue
+    def __init__(self, floats: str = "") -> None:
+        self.floats = floats
+
+    def fail(self, kind: str, tp: Any, value: Any, path: str) -> DecodeError:
+        if kind == "list":
+            return DecodeError(f"{path}: expected a list, got {type(value).__name__}")
+        if kind == "length":
+            return DecodeError(
+                f"{path}: expected {len(typing.get_args(tp))} items, got {len(value)}"
+            )
+        if kind == "mapping":
+            return DecodeError(f"{path}: expected an object")
+        if kind == "literal":
+            return DecodeError(f"{path}: {value!r} not one of {typing.get_args(tp)}")
+        if kind == "union":
+            return DecodeError(f"{path}: {value!r} fits none of {tp}")
+        return DecodeError(f"{path}: unsupported field type {tp}")
+
+    def scalar(self, tp: Any, value: Any, path: str) -> Any:
+        if tp is float:
+            return self._float(value, path)
+        if tp is int:
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise DecodeError(f"{path}: expected an integer, got {value!r}")
+            if not -_I64 <= value < _I64:
+                raise DecodeError(f"{path}: integer {value} does not fit in 64 bits")
+            if path.endswith("_ns") and value < 0:
+                raise DecodeError(f"{path}: a stamp must not be negative, got {value}")
+            return value
+        if tp is bool:
+            if not isinstance(value, bool):
+                raise DecodeError(f"{path}: expected true/false, got {value!r}")
+            return value
+        if tp is str:
+            if not isinstance(value, str):
+                raise DecodeError(f"{path}: expected a string, got {value!r}")
+            return value
+        if tp is bytes:
+            if not isinstance(value, str):
+                raise DecodeError(f"{path}: expected base64 text, got {value!r}")
             try:
-                return _build(arg, value, path, floats)
-            except DecodeError as exc:
-                errors.append(str(exc))
-        raise DecodeError(f"{path}: {value!r} fits none of {tp}")
-    if origin is tuple:
-        args = typing.get_args(tp)
-        if not isinstance(value, list):
-            raise DecodeError(f"{path}: expected a list, got {type(value).__name__}")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_build(args[0], v, f"{path}[{i}]", floats) for i, v in enumerate(value))
-        if len(args) != len(value):
-            raise DecodeError(f"{path}: expected {len(args)} items, got {len(value)}")
-        return tuple(
-            _build(a, v, f"{path}[{i}]", floats)
-            for i, (a, v) in enumerate(zip(args, value, strict=True))
-        )
-    if origin is dict:
-        kt, vt = typing.get_args(tp)
-        if not isinstance(value, dict):
-            raise DecodeError(f"{path}: expected an object")
-        return {_build(kt, k, path): _build(vt, v, f"{path}.{k}", floats) for k, v in value.items()}
-    if origin is typing.Literal:
-        if value not in typing.get_args(tp):
-            raise DecodeError(f"{path}: {value!r} not one of {typing.get_args(tp)}")
-        return value
-    if dataclasses.is_dataclass(tp):
-        return _from_dict(tp, value, path, floats)
-    if tp is float:
+                return base64.b64decode(value, validate=True)
+            except ValueError as exc:
+                raise DecodeError(f"{path}: bad base64: {exc}") from None
+        raise self.fail("type", tp, value, path)
+
+    def _float(self, value: Any, path: str) -> float:
         if isinstance(value, str) and value in ("nan", "inf", "-inf"):
             value = float(value)
         elif isinstance(value, bool) or not isinstance(value, int | float):
@@ -116,53 +129,35 @@ def _build(tp: Any, value: Any, path: str, floats: str = "") -> Any:
             value = float(value)
         except OverflowError:
             raise DecodeError(f"{path}: number {value} is out of range") from None
+        floats = self.floats
         if floats and (value != value or (floats == "finite" and not math.isfinite(value))):
             raise DecodeError(f"{path}: must be a {floats.replace('_', '-')} number, got {value}")
         return value
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise DecodeError(f"{path}: expected an integer, got {value!r}")
-        if not -_I64 <= value < _I64:
-            raise DecodeError(f"{path}: integer {value} does not fit in 64 bits")
-        if path.endswith("_ns") and value < 0:
-            raise DecodeError(f"{path}: a stamp must not be negative, got {value}")
-        return value
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise DecodeError(f"{path}: expected true/false, got {value!r}")
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            raise DecodeError(f"{path}: expected a string, got {value!r}")
-        return value
-    if tp is bytes:
-        if not isinstance(value, str):
-            raise DecodeError(f"{path}: expected base64 text, got {value!r}")
-        try:
-            return base64.b64decode(value, validate=True)
-        except ValueError as exc:
-            raise DecodeError(f"{path}: bad base64: {exc}") from None
-    raise DecodeError(f"{path}: unsupported field type {tp}")
+
+    def record(self, cls: type, value: Any, path: str) -> Any:
+        if not isinstance(value, dict):
+            where = path or cls.__name__
+            raise DecodeError(f"{where}: expected an object, got {type(value).__name__}")
+        reader = self if self.floats else _decoder(getattr(cls, "FLOATS", ""))
+        types_ = hints(cls)
+        kwargs = {}
+        for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+            sub = join(path, f.name)
+            if f.name in value:
+                kwargs[f.name] = reader.read(types_[f.name], value[f.name], sub)
+            elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+                raise DecodeError(f"{cls.__name__}: missing field {sub!r}")
+        return cls(**kwargs)
 
 
-def _from_dict(cls: type[T], data: Any, path: str, floats: str = "") -> T:
-    if not isinstance(data, dict):
-        raise DecodeError(f"{path or cls.__name__}: expected an object, got {type(data).__name__}")
-    hints = _hints(cls)
-    floats = floats or getattr(cls, "FLOATS", "")
-    kwargs = {}
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
-        sub = f"{path}.{f.name}" if path else f.name
-        if f.name in data:
-            kwargs[f.name] = _build(hints[f.name], data[f.name], sub, floats)
-        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-            raise DecodeError(f"{cls.__name__}: missing field {sub!r}")
-    return cls(**kwargs)
+@cache
+def _decoder(floats: str) -> _Decoder:
+    return _Decoder(floats)
 
 
 def from_dict(cls: type[T], data: Any) -> T:
     """Rebuild a message from plain values; unknown keys are ignored (newer senders)."""
-    return _from_dict(cls, data, "")
+    return _decoder("").record(cls, data, "")
 
 
 def decode(
@@ -181,7 +176,7 @@ def decode(
     except RecursionError:
         raise DecodeError(f"{cls.__name__}: nested too deeply") from None
     try:
-        return _from_dict(cls, data, "")
+        return _decoder("").record(cls, data, "")
     except RecursionError:
         raise DecodeError(f"{cls.__name__}: nested too deeply") from None
     except (TypeError, ValueError) as exc:
@@ -218,8 +213,7 @@ def _schema_of(tp: Any) -> dict[str, Any]:
 
 @cache
 def _json_schema(cls: type) -> str:
-    hints = _hints(cls)
-    props = {f.name: _schema_of(hints[f.name]) for f in dataclasses.fields(cls)}
+    props = {f.name: _schema_of(hints(cls)[f.name]) for f in dataclasses.fields(cls)}
     schema: dict[str, Any] = {"type": "object", "title": cls.__name__, "properties": props}
     if cls.__doc__:
         schema["description"] = cls.__doc__.strip().splitlines()[0]

@@ -1,15 +1,12 @@
-"""Planar geometry values: poses, covariances, boxes. Metres and radians."""
+"""Planar geometry values: poses, covariances, boxes. Metres and radians.
+
+Angles are wrapped to (-pi, pi] by numerics.angles.wrap_angle (re-exported as
+``msgs.wrap_angle``).
+"""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-
-
-def wrap_angle(a: float) -> float:
-    """Wrap an angle in radians to (-pi, pi]."""
-    w = math.remainder(a, 2.0 * math.pi)
-    return math.pi if w == -math.pi else w
 
 
 @dataclass(frozen=True, slots=True)

@@ -7,21 +7,12 @@ import math
 
 import numpy as np
 import pytest
+from numjac import numeric_jacobian
 
 from fakes.world.paper_scenario import simulate
 from localization.ekf import EkfConfig, EkfLocalizer, IntegrityMonitor
 from localization.odometry import motion, motion_jacobians, wheels_from_poses
 from msgs import GpsFix, GyroSample, Interval, Pose2D, PoseBox, PoseEstimate, RobotOdometry
-
-
-def _num_jac(f, v, h=1e-7):
-    v = np.asarray(v, float)
-    cols = []
-    for i in range(v.size):
-        dv = np.zeros_like(v)
-        dv[i] = h
-        cols.append((f(v + dv) - f(v - dv)) / (2 * h))
-    return np.stack(cols, axis=1)
 
 
 @pytest.mark.parametrize("kappa,chord", [(0.5, True), (1.0, False), (0.5, False)])
@@ -34,8 +25,8 @@ def test_motion_jacobians_match_finite_differences(kappa, chord):
         if rng.random() < 0.2:
             u[1] = u[0] + rng.uniform(-1e-6, 1e-6)  # the near-straight branch
         a, w = motion_jacobians(s, u, e, kappa, chord)
-        na = _num_jac(lambda v, u=u: motion(v, u, e, kappa, chord), s)
-        nw = _num_jac(lambda v, s=s: motion(s, v, e, kappa, chord), u)
+        na = numeric_jacobian(lambda v, u=u: motion(v, u, e, kappa, chord), s)
+        nw = numeric_jacobian(lambda v, s=s: motion(s, v, e, kappa, chord), u)
         np.testing.assert_allclose(a, na, atol=1e-6)
         np.testing.assert_allclose(w, nw, atol=1e-6)
 

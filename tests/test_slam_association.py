@@ -15,9 +15,10 @@ from mapping.slam.association import (
 )
 from mapping.slam.ekf import EkfSlam
 from mapping.slam.jcbb import jcbb
-from mapping.slam.models import UnicycleModel, wrap
+from mapping.slam.models import UnicycleModel
 from mapping.slam.service import LandmarkSlam, SlamConfig
 from msgs import LandmarkScan
+from numerics.angles import wrap
 
 
 def test_mahalanobis_matrix_matches_loop():

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from mapping.slam.ekf import EkfSlam
-from mapping.slam.models import HALF_PI, AckermannModel, inverse_observe, observe, wrap
+from mapping.slam.models import HALF_PI, AckermannModel, inverse_observe, observe
+from numerics.angles import wrap
 
 
 def make_filter(seed: int = 0, n: int = 5) -> tuple[EkfSlam, np.random.Generator]:

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from numjac import numeric_jacobian
 
 from mapping.slam.models import (
     HALF_PI,
@@ -14,23 +15,14 @@ from mapping.slam.models import (
     UnicycleModel,
     inverse_observe,
     observe,
-    wrap,
 )
+from numerics.angles import wrap
 
 EPS = 1e-6
 
 
 def numjac(f, x: np.ndarray, angular_out: tuple[int, ...] = ()) -> np.ndarray:
-    x = np.asarray(x, float)
-    cols = []
-    for i in range(len(x)):
-        dx = np.zeros_like(x)
-        dx[i] = EPS
-        d = (np.asarray(f(x + dx)) - np.asarray(f(x - dx))).ravel()
-        for k in angular_out:
-            d[k] = wrap(d[k])
-        cols.append(d / (2 * EPS))
-    return np.stack(cols, axis=1)
+    return numeric_jacobian(f, x, EPS, angular_out)
 
 
 GEOMS = [

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from msgs import Pose2D
+from numerics.angles import wrap_angles
 
 SHRINK = 0.95  # errors are drawn within SHRINK * bound
 
@@ -155,7 +156,7 @@ def simulate(
                 -1, 1, k + 1
             )
             brg = np.arctan2(d[:, 1], d[:, 0]) - truth[i, :, 2]
-            brg = np.remainder(brg + math.pi, 2 * math.pi) - math.pi
+            brg = wrap_angles(brg)
             rel_b[i, j] = brg + SHRINK * b.bearing_rad * rng.uniform(-1, 1, k + 1)
     return Scenario(
         names=[r.name for r in robots],

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mapping.slam.models import wrap
+from numerics.angles import wrap
 
 #: chi-square quantiles, 2 degrees of freedom.
 CHI2_2DOF_95 = 5.991

@@ -25,7 +25,8 @@ from typing import Protocol
 import numpy as np
 import scipy.linalg
 
-from mapping.slam.models import HALF_PI, inverse_observe, observe, wrap
+from mapping.slam.models import HALF_PI, inverse_observe, observe
+from numerics.angles import wrap
 
 
 class MotionModel(Protocol):

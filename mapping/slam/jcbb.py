@@ -17,7 +17,7 @@ import scipy.linalg
 import scipy.stats
 
 from mapping.slam.association import CHI2_2DOF_99
-from mapping.slam.models import wrap
+from numerics.angles import wrap
 
 
 def jcbb(

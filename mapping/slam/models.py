@@ -14,7 +14,7 @@ encoder on a rear wheel ``H`` to the left of the centre line reads
 conversion is part of the model, so Q is the noise of what was measured.
 
 Unicycle odometry (the Pioneer): control = (distance d, heading change dtheta) of one
-step, midpoint integration.
+step, midpoint integration: ekf-vs-cp eq. (2) with kappa = 1/2, numerics.motion.
 
 Range-bearing observation (eq. 14 onward): ``r = |m - p|``,
 ``phi = atan2(my - y, mx - x) - theta + bearing_offset``, with ``bearing_offset = pi/2``
@@ -33,17 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from numerics.angles import wrap
+from numerics.motion import motion, motion_jacobians
+
 HALF_PI = 0.5 * math.pi
-
-
-def wrap(a: np.ndarray | float) -> np.ndarray | float:
-    """Wrap angles (array or scalar) to (-pi, pi]."""
-    if isinstance(a, float):
-        w = math.remainder(a, 2.0 * math.pi)
-        return math.pi if w == -math.pi else w
-    w = np.mod(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
-    w = np.where(w == -np.pi, np.pi, w)
-    return float(w) if np.ndim(w) == 0 else w
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,14 +118,8 @@ class UnicycleModel:
         self, xv: np.ndarray, u: np.ndarray, dt: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (f(xv, u), df/dxv, df/du); ``dt`` is unused (u is already integrated)."""
-        x, y, th = float(xv[0]), float(xv[1]), float(xv[2])
-        d, dth = float(u[0]), float(u[1])
-        mid = th + 0.5 * dth
-        c, s = math.cos(mid), math.sin(mid)
-        out = np.array([x + d * c, y + d * s, th + dth])
-        fx = np.array([[1.0, 0.0, -d * s], [0.0, 1.0, d * c], [0.0, 0.0, 1.0]])
-        fu = np.array([[c, -0.5 * d * s], [s, 0.5 * d * c], [0.0, 1.0]])
-        return out, fx, fu
+        f, g = motion_jacobians(xv, u)
+        return motion(xv, u), f, g
 
 
 def observe(

@@ -40,12 +40,12 @@ from mapping.slam.models import (
     AckermannModel,
     UnicycleModel,
     inverse_observe,
-    wrap,
 )
 from msgs.estimates import PoseEstimate
 from msgs.geometry import Pose2D
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.robot import RobotOdometry
+from numerics.angles import wrap
 
 BEARING_OFFSETS = {"y": HALF_PI, "x": 0.0}
 
