@@ -8,7 +8,7 @@ import tomllib
 from pathlib import Path
 
 from hilnav.config import default_toml_path
-from hilnav.config_doc import reference, toml_comments
+from hilnav.config.reference import reference, toml_comments
 from tests.conftest import HILNAV, ROOT, hilnav_env
 
 

@@ -15,8 +15,8 @@ from hilnav.analysis.errors import stats
 from hilnav.analysis.geometry import interp_pose
 from hilnav.analysis.result import BoxContainment, BoxSummary, EkfContainment
 from hilnav.analysis.tracks import RobotLog, Track
-from mapping.slam.models import wrap
 from msgs import PoseBox
+from numerics.angles import wrap
 
 
 def ekf_containment(track: Track, ref: Track, sigmas: float = 3.0) -> EkfContainment | None:

@@ -27,7 +27,7 @@ from hilnav.analysis.result import (
     Stats,
 )
 from hilnav.analysis.tracks import DEAD_RECKONING, Track
-from mapping.slam.models import wrap
+from numerics.angles import wrap
 
 
 def stats(e: np.ndarray) -> Stats | None:

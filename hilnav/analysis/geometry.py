@@ -1,6 +1,6 @@
 """Numerics of tracks: interpolation in time, distance travelled, start alignment, rigid fit.
 
-Angles of arrays are wrapped by ``mapping.slam.models.wrap`` (to (-pi, pi], like
+Angles of arrays are wrapped by ``numerics.angles.wrap`` (to (-pi, pi], like
 ``msgs.wrap_angle`` for one angle).
 """
 
@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from mapping.slam.models import wrap
+from numerics.angles import wrap
 
 
 def interp_pose(

@@ -45,7 +45,7 @@ def example(args: argparse.Namespace) -> int:
 
 
 def reference(args: argparse.Namespace) -> int:
-    from hilnav.config_doc import reference as markdown
+    from hilnav.config.reference import reference as markdown
 
     sys.stdout.write(markdown())
     return 0
