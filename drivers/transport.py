@@ -156,6 +156,8 @@ def _open_error(path: str, exc: Exception) -> DeviceError:
             f"{path}: no such port; check the cable and the device name "
             "(ls /dev/ttyUSB* /dev/ttyACM* /dev/serial/by-id/)"
         )
+    if (err == errno.EACCES or "Permission denied" in text) and Path(path).is_file():
+        return DeviceError(f"{path}: permission denied; check the file's permissions (ls -l)")
     if err == errno.EACCES or "Permission denied" in text:
         return DeviceError(
             f"{path}: permission denied; add your user to the 'dialout' group "

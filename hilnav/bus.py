@@ -20,6 +20,7 @@ one is counted (``callback_errors``) and never reaches Zenoh.
 from __future__ import annotations
 
 import json
+import re
 import socket
 import threading
 from collections.abc import Callable, Iterable
@@ -45,6 +46,21 @@ def check_name(name: str, what: str = "robot name") -> str:
             "chunk, hilnav/<robot>/...)"
         )
     return name
+
+
+def zenoh_problem(exc: BaseException) -> str:
+    """A Zenoh error as one readable line: the Rust source locations cut out, JSON5 parse
+    errors reduced to their message, a busy listen port explained."""
+    text = re.sub(r" at /[^ \]]+\.rs:\d+\.?", "", str(exc)).strip()
+    m = re.search(r'msg: "((?:[^"\\]|\\.)*)"', text)
+    if m:
+        text = m.group(1).replace('\\"', '"')
+    if "Address already in use" in text:
+        text += (
+            " (another hilnav run, a router or another program listens there: stop it, or "
+            "set [zenoh] listen to another port)"
+        )
+    return text
 
 
 def key(robot: str, topic: str) -> str:
@@ -89,11 +105,18 @@ class ZenohSettings:
         return cls(listen=listen, connect=tuple(f"tcp/127.0.0.1:{p}" for p in connect_ports))
 
     def to_zenoh(self) -> zenoh.Config:
-        """The zenoh.Config these settings describe."""
-        conf = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
+        """The zenoh.Config these settings describe; ValueError naming the Zenoh config
+        path whose value Zenoh refuses."""
+        try:
+            conf = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
+        except zenoh.ZError as exc:
+            raise ValueError(f"{self.config_file}: {zenoh_problem(exc)}") from None
 
         def put(path: str, value: Any) -> None:
-            conf.insert_json5(path, json.dumps(value))
+            try:
+                conf.insert_json5(path, json.dumps(value))
+            except zenoh.ZError as exc:
+                raise ValueError(f"{path} = {value!r}: {zenoh_problem(exc)}") from None
 
         if self.mode and (not self.config_file or self.mode != "peer"):
             put("mode", self.mode)

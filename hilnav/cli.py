@@ -51,6 +51,11 @@ def main(argv: list[str] | None = None) -> int:
     except CliError as exc:
         print(f"hilnav {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a file that cannot be read or written: say which and why
+        name = exc.filename or ""
+        what = f"{name}: {exc.strerror}" if name and exc.strerror else str(exc)
+        print(f"hilnav {args.command}: error: {what}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         return 130
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hilnav.bus import Bus, ZenohSettings
+from hilnav.bus import Bus, ZenohSettings, zenoh_problem
 from hilnav.config import RobotConfig
 from hilnav.devices import make_drivers, with_fake_ports
 from hilnav.fakeset import FakeProcess, FakeProcessError
@@ -97,7 +97,7 @@ class Daemon:
         try:
             self.bus = Bus(self.robot, self.zenoh, fleet=self.cfg.fleet)
         except Exception as exc:  # zenoh.ZError and friends
-            raise DaemonError(f"cannot open the Zenoh session: {exc}") from None
+            raise DaemonError(f"cannot open the Zenoh session: {zenoh_problem(exc)}") from None
         try:
             if self.cfg.simulated:
                 self._start_fakes()

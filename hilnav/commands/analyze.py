@@ -37,10 +37,13 @@ def run(args: argparse.Namespace) -> int:
     if not log.is_file():
         raise CliError(f"no such log file: {log}")
     out = Path(args.out) if args.out else default_out(log)
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out}: a file of that name exists; name a directory")
     try:
         result = analyze(log, plan=args.plan)
     except ValueError as exc:
-        raise CliError(f"{log}: {exc}") from None
+        msg = str(exc)
+        raise CliError(msg if msg.startswith(str(log)) else f"{log}: {msg}") from None
     summary = write_report(result, out, plots=not args.no_plots)
     print(json.dumps(summary, sort_keys=True))
     return 0

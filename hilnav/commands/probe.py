@@ -9,7 +9,7 @@ import signal
 import time
 
 from drivers.base import DeviceError
-from hilnav.commands.probe_sensors import probe_config, register_sensors
+from hilnav.commands.probe_sensors import no_messages, probe_config, register_sensors
 from hilnav.devices import DEVICES
 from hilnav.errors import CliError
 from msgs import RobotInfo, RobotOdometry, to_dict
@@ -75,19 +75,24 @@ def probe_arcos(args: argparse.Namespace) -> int:
     if info is not None:
         print(json.dumps({"robot": to_dict(info)}), flush=True)
     deadline = time.monotonic() + args.seconds
+    sips = 0
     try:
         while time.monotonic() < deadline and not stop and not driver.eof:
             if drive is not None:
                 driver.set_velocity(*drive)
             for m in driver.read(0.2):
                 if isinstance(m, RobotOdometry):
+                    sips += 1
                     print(json.dumps(sip_json(m)), flush=True)
                 elif isinstance(m, RobotInfo) and m is not info:
                     print(json.dumps({"robot": to_dict(m)}), flush=True)
     except KeyboardInterrupt:
         pass
     finally:
+        ended = driver.eof
         if drive is not None:
             driver.stop()
         driver.close()
+    if sips == 0 and ended:
+        raise CliError(no_messages(args.port, driver))
     return 0

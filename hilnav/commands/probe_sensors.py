@@ -97,7 +97,7 @@ def _loop(driver: Any, args: argparse.Namespace) -> int:
         driver.open()
     except DeviceError as exc:
         raise CliError(str(exc)) from None
-    n = 0
+    n, ended = 0, False
     deadline = time.monotonic() + args.seconds
     try:
         while time.monotonic() < deadline and not stop:
@@ -110,12 +110,24 @@ def _loop(driver: Any, args: argparse.Namespace) -> int:
                     if args.count is not None and n >= args.count:
                         return 0
             if getattr(driver, "eof", False) and not msgs:
+                ended = True
                 break
     except KeyboardInterrupt:
         pass
     finally:
         driver.close()
+    if n == 0 and ended:
+        raise CliError(no_messages(args.port, driver))
     return 0
+
+
+def no_messages(port: str, driver: Any) -> str:
+    """The error for a recorded file that held nothing the device's codec could decode."""
+    s = driver.codec.stats
+    return (
+        f"{port}: no {driver.device} messages in this file ({s.bytes_skipped} bytes skipped, "
+        f"{s.bad_checksums} bad checksums); is it a recording of this device?"
+    )
 
 
 def probe_ir(args: argparse.Namespace) -> int:

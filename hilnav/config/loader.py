@@ -161,6 +161,15 @@ def _cross_checks(cfg: RobotConfig, src: str) -> None:
             raise ConfigError(
                 f'{src}: {where} = {ep!r}: expected PROTO/ADDRESS:PORT, e.g. "tcp/127.0.0.1:7447"'
             )
+        port = rest.rsplit(":", 1)[-1].split("#", 1)[0]
+        if proto != "unixsock-stream" and (not port.isdigit() or int(port) > 65535):
+            raise ConfigError(f"{src}: {where} = {ep!r}: the port must be 0..65535")
+    try:
+        cfg.zenoh.settings().to_zenoh()
+    except ValueError as exc:
+        raise ConfigError(
+            f"{src}: [zenoh] {exc}; see Zenoh's configuration reference for that key"
+        ) from None
 
 
 def parse_config(data: dict[str, Any], source: str = "<config>") -> RobotConfig:

@@ -36,6 +36,10 @@ def _choice(*options: Any) -> dict[str, Any]:
     return _check(lambda v: v in options, "must be one of " + ", ".join(map(repr, options)))
 
 
+def _baud(eg: str) -> dict[str, Any]:
+    return _check(lambda v: 50 <= v <= 4_000_000, f"a serial baud rate, 50..4000000 (e.g. {eg})")
+
+
 def _fraction() -> dict[str, Any]:
     return _check(lambda v: 0.0 <= v <= 1.0, "must be a fraction between 0 and 1")
 
@@ -55,7 +59,7 @@ class ArcosDevice:
 
     enabled: bool = True
     port: str = "sim"
-    baud: int = field(default=9600, metadata=_positive("9600"))
+    baud: int = field(default=9600, metadata=_baud("9600"))
 
 
 @dataclass(frozen=True)
@@ -65,10 +69,13 @@ class IrDevice:
     enabled: bool = True
     link: str = field(default="can", metadata=_choice("serial", "can"))
     port: str = "sim"  # serial link: the port; can link with slcan: the adapter's port
-    baud: int = field(default=115200, metadata=_positive("115200"))
+    baud: int = field(default=115200, metadata=_baud("115200"))
     can_interface: str = "slcan"  # python-can interface: slcan, socketcan, virtual, ...
     can_channel: str = ""  # empty: the port (slcan); e.g. can0 for socketcan
-    can_bitrate: int = field(default=500_000, metadata=_positive("500000"))
+    can_bitrate: int = field(
+        default=500_000,
+        metadata=_check(lambda v: 5_000 <= v <= 8_000_000, "a CAN bit rate, 5000..8000000"),
+    )
     board_id: int = field(default=1, metadata=_check(lambda v: 0 <= v <= 15, "must be 0..15"))
     rate_hz: int = field(default=20, metadata=_check(lambda v: 1 <= v <= 1000, "must be 1..1000"))
     adc_bits: int = field(default=10, metadata=_choice(10, 12))
@@ -82,7 +89,7 @@ class GyroDevice:
 
     enabled: bool = True
     port: str = "sim"
-    baud: int = field(default=115200, metadata=_positive("115200"))
+    baud: int = field(default=115200, metadata=_baud("115200"))
     rate_hz: int = field(default=100, metadata=_check(lambda v: 1 <= v <= 1000, "1..1000"))
 
 
@@ -92,7 +99,7 @@ class GpsDevice:
 
     enabled: bool = True
     port: str = "sim"
-    baud: int = field(default=9600, metadata=_positive("9600"))
+    baud: int = field(default=9600, metadata=_baud("9600"))
     datum: tuple[float, float] = field(
         default=(37.5665, 126.9780),
         metadata=_check(

@@ -34,10 +34,10 @@ def summary(cfg: RobotConfig) -> str:
         if not dc.enabled:
             lines.append(f"  {name:6s} off")
             continue
-        where = dc.port
+        where = f"{dc.port} @ {dc.baud} baud"
         if name == "ir" and dc.link == "can":
-            where = f"CAN {dc.can_interface}:{dc.can_channel or dc.port}"
-        lines.append(f"  {name:6s} {where} @ {dc.baud} baud")
+            where = f"CAN {dc.can_interface}:{dc.can_channel or dc.port} @ {dc.can_bitrate} bit/s"
+        lines.append(f"  {name:6s} {where}")
     sv = cfg.services
     on = [n for n in ("heading", "pose", "mapping", "localization") if getattr(sv, n).enabled]
     lines.append(f"  services: {', '.join(on) or 'none'}")
