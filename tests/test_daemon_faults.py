@@ -211,3 +211,46 @@ def test_the_fake_process_dies_with_a_killed_daemon(tmp_path):
             proc.wait(10)
         if proc.stdout is not None:
             proc.stdout.close()
+
+
+def test_a_silent_peer_is_dropped_and_readmitted_when_it_returns(tmp_path):
+    from msgs import Interval, PoseBox
+
+    port = free_tcp_port()
+    cfg = parse_config(
+        {
+            "name": "r1",
+            "fleet": ["r2"],
+            "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]},
+            "log": {"enabled": False},
+            "services": {
+                "mapping": {"enabled": False},
+                "localization": {"peer_timeout_s": 0.5},
+            },  # fmt: skip
+            "devices": {d: {"enabled": False} for d in ("arcos", "ir", "gyro", "gps")},
+        },
+        "<test>",
+    )
+    d = Daemon(cfg)
+    d.start()
+    r2 = Bus("r2", ZenohSettings.loopback(connect_ports=[port]), fleet=["r1"])
+    cp = d.pipeline.localization.cp
+
+    def publish_for(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            box = PoseBox(time.time_ns(), "r2", Interval(0, 1), Interval(0, 1), Interval(0, 0.1))
+            r2.publish("pose_box", box)
+            time.sleep(0.05)
+
+    try:
+        publish_for(1.0)
+        assert _wait(lambda: "r2" in cp.peers and d.peers.alive == {"r2"}, 5.0)
+        # r2 freezes (its Zenoh session, and so its liveliness token, stay up)
+        assert _wait(lambda: "r2" not in cp.peers, 5.0)
+        assert d.peers.dropped[-1] == ("r2", "silent for 0.5 s")
+        publish_for(0.5)  # back
+        assert _wait(lambda: "r2" in cp.peers and "r2" in d.peers.alive, 5.0)
+    finally:
+        r2.close()
+        d.stop()
