@@ -19,6 +19,15 @@ def test_committed_configuration_reference_equals_the_generator():
     )
 
 
+def test_committed_interfaces_page_equals_the_generator():
+    from hilnav.interfaces_doc import reference as interfaces
+
+    committed = (ROOT / "docs" / "interfaces.md").read_text(encoding="utf-8")
+    assert committed == interfaces(), (
+        "docs/interfaces.md is stale: run `python -m hilnav.interfaces_doc > docs/interfaces.md`"
+    )
+
+
 def test_cli_prints_the_reference():
     res = subprocess.run(
         [*HILNAV, "config", "reference"],
