@@ -56,19 +56,17 @@ def children(pid: int) -> list[int]:
         return []
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=60.0, help="length of the run")
-    ap.add_argument("--out", type=Path, default=None, help="keep the log in this directory")
-    args = ap.parse_args(argv)
-    tmp = None
-    if args.out is None:
+def output_dir(out: Path | None) -> tuple[Path, tempfile.TemporaryDirectory | None]:
+    """The directory for the config and the log: ``out``, or a temporary one (returned too)."""
+    if out is None:
         tmp = tempfile.TemporaryDirectory(prefix="hilnav-bench-daemon-")
-        out = Path(tmp.name)
-    else:
-        out = args.out
-        out.mkdir(parents=True, exist_ok=True)
-    port = free_tcp_port()
+        return Path(tmp.name), tmp
+    out.mkdir(parents=True, exist_ok=True)
+    return out, None
+
+
+def start_daemon(out: Path, port: int) -> tuple[subprocess.Popen, Path]:
+    """``hilnav run`` on the embedded defaults, Zenoh on ``port``; returns it and its log."""
     cfg = out / "bench-robot.toml"
     cfg.write_text(
         f'[zenoh]\nlisten = ["tcp/127.0.0.1:{port}"]\ngossip_scouting = true\n[log]\ndir = "{out}"\n'
@@ -83,43 +81,75 @@ def main(argv: list[str] | None = None) -> int:
         text=True,
         env=env,
     )
-    op = Operator("r1", port)
-    latencies: list[float] = []
-    lock = threading.Lock()
+    return proc, log
 
-    def on_pose(robot, msg):  # noqa: ANN001
+
+class PoseLatencies:
+    """Milliseconds from each received pose's stamp to its arrival (a bus callback)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.values: list[float] = []
+
+    def on_pose(self, robot, msg) -> None:  # noqa: ANN001
         now = time.time_ns()
-        with lock:
-            latencies.append((now - msg.stamp_ns) * 1e-6)
+        with self._lock:
+            self.values.append((now - msg.stamp_ns) * 1e-6)
 
-    op.bus.subscribe("r1", "pose", on_pose)
-    t_wait = time.monotonic() + 60.0
+    def clear(self) -> None:
+        with self._lock:
+            self.values.clear()
+
+
+def wait_for_robot(op: Operator, proc: subprocess.Popen, timeout_s: float = 60.0) -> bool:
+    """Wait (up to ``timeout_s``) for the robot's pose and liveliness; False if it died."""
+    t_wait = time.monotonic() + timeout_s
     while time.monotonic() < t_wait and (op.where() is None or not op.alive):
         if proc.poll() is not None:
             print(proc.stderr.read(), file=sys.stderr)
-            return 1
+            return False
         time.sleep(0.1)
+    return True
+
+
+def drive_tour(
+    op: Operator, proc: subprocess.Popen, latencies: PoseLatencies, seconds: float
+) -> tuple[float, float, float]:
+    """Drive the tour for ``seconds``: CPU seconds of the daemon and of the fakes, elapsed s."""
     fake_pids = children(proc.pid)
     cpu0 = cpu_seconds(proc.pid)
     fcpu0 = sum(cpu_seconds(p) for p in fake_pids)
-    with lock:
-        latencies.clear()
+    latencies.clear()
     t0 = time.monotonic()
-    deadline = t0 + args.seconds
-    time.sleep(min(2.0, args.seconds / 4))  # the gyro's bias is learnt at rest
+    deadline = t0 + seconds
+    time.sleep(min(2.0, seconds / 4))  # the gyro's bias is learnt at rest
     while time.monotonic() < deadline:
         op.drive(TOUR, 0.5, deadline)
     cpu1 = cpu_seconds(proc.pid)
     fcpu1 = sum(cpu_seconds(p) for p in fake_pids)
     elapsed = time.monotonic() - t0
+    return cpu1 - cpu0, fcpu1 - fcpu0, elapsed
+
+
+def stop_daemon(op: Operator, proc: subprocess.Popen) -> tuple[str, str]:
+    """Stop the robot, close the session, SIGTERM the daemon; its stdout and stderr."""
     op.send(0.0, 0.0)
     op.close()
     proc.send_signal(signal.SIGTERM)
-    stdout, stderr = proc.communicate(timeout=60)
+    return proc.communicate(timeout=60)
+
+
+def dropped_messages(stdout: str) -> int | None:
+    """The count on the daemon's ``... N dropped`` line, if it printed one."""
     dropped = None
     for line in stdout.splitlines():
         if "dropped" in line:
             dropped = int(line.split(" dropped")[0].rsplit(" ", 1)[1])
+    return dropped
+
+
+def log_statistics(log: Path) -> tuple[int, float]:
+    """Messages in the MCAP log and the seconds between its first and last."""
     from mcap.reader import make_reader
 
     with open(log, "rb") as f:
@@ -127,20 +157,39 @@ def main(argv: list[str] | None = None) -> int:
     stats = summary.statistics if summary is not None else None
     n_msgs = stats.message_count if stats is not None else 0
     span_s = (stats.message_end_time - stats.message_start_time) * 1e-9 if stats else 0.0
-    lat = np.array(latencies) if latencies else np.array([np.nan])
+    return n_msgs, span_s
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0, help="length of the run")
+    ap.add_argument("--out", type=Path, default=None, help="keep the log in this directory")
+    args = ap.parse_args(argv)
+    out, tmp = output_dir(args.out)
+    port = free_tcp_port()
+    proc, log = start_daemon(out, port)
+    op = Operator("r1", port)
+    latencies = PoseLatencies()
+    op.bus.subscribe("r1", "pose", latencies.on_pose)
+    if not wait_for_robot(op, proc):
+        return 1
+    cpu, fcpu, elapsed = drive_tour(op, proc, latencies, args.seconds)
+    stdout, stderr = stop_daemon(op, proc)
+    n_msgs, span_s = log_statistics(log)
+    lat = np.array(latencies.values) if latencies.values else np.array([np.nan])
     result = {
         "bench": "daemon",
         "seconds": round(elapsed, 1),
         "exit_code": proc.returncode,
-        "cpu_percent_daemon": round(100.0 * (cpu1 - cpu0) / elapsed, 1),
-        "cpu_percent_fakes": round(100.0 * (fcpu1 - fcpu0) / elapsed, 1),
+        "cpu_percent_daemon": round(100.0 * cpu / elapsed, 1),
+        "cpu_percent_fakes": round(100.0 * fcpu / elapsed, 1),
         "pose_latency_ms_p50": round(float(np.percentile(lat, 50)), 2),
         "pose_latency_ms_p99": round(float(np.percentile(lat, 99)), 2),
-        "poses_received": len(latencies),
+        "poses_received": len(latencies.values),
         "mcap_messages": n_msgs,
         "mcap_messages_per_s": round(n_msgs / span_s, 1) if span_s > 0 else 0.0,
         "mcap_bytes": log.stat().st_size,
-        "dropped": dropped,
+        "dropped": dropped_messages(stdout),
         "load_average_1min": round(os.getloadavg()[0], 2),
     }
     if stderr.strip():

@@ -7,7 +7,7 @@ per-wheel radius error, white slip growing with the distance rolled, wheel-base 
 stepped at 100 Hz directly, without ptys or a World (no walls on a flat floor). From it:
 
 - RobotOdometry at 10 Hz, integrated from the quantised encoder ticks with the nominal
-  wheel base, exactly as the emulated ARCOS firmware (fakes/pioneer.py) does, and
+  wheel base, exactly as the emulated ARCOS firmware (fakes/pioneer_motion.py) does, and
   quantised like a SIP (1 mm positions, 2 pi / 4096 headings);
 - GyroSample at 100 Hz from the fakes' CruzCore error model (fakes.world.GyroErrorModel:
   turn-on bias, bias random walk, white noise, scale error), the angle integrated by the
@@ -63,6 +63,90 @@ def route(rng: np.random.Generator, length_m: float) -> list[tuple[float, float]
     return pts[1:]
 
 
+class FirmwareOdometry:
+    """Odometry as the ARCOS firmware keeps it: encoder ticks, nominal wheel base (m, rad)."""
+
+    def __init__(self, robot: DiffDriveRobot) -> None:
+        self.base = robot.wheelbase_m
+        self.k = 1.0 / robot.ticks_per_m
+        self.ticks = (robot.left_ticks, robot.right_ticks)
+        self.odo = [0.0, 0.0, 0.0]
+
+    def update(self, robot: DiffDriveRobot) -> Pose2D:
+        """Integrate the ticks since the last call; the pose quantised as a SIP reports it."""
+        odo = self.odo
+        lt, rt = robot.left_ticks, robot.right_ticks
+        dl, dr = (lt - self.ticks[0]) * self.k, (rt - self.ticks[1]) * self.k
+        self.ticks = (lt, rt)
+        d, dth = 0.5 * (dl + dr), (dr - dl) / self.base
+        odo[0] += d * math.cos(odo[2] + 0.5 * dth)
+        odo[1] += d * math.sin(odo[2] + 0.5 * dth)
+        odo[2] = wrap_angle(odo[2] + dth)
+        return Pose2D(
+            round(odo[0] * 1000.0) / 1000.0,
+            round(odo[1] * 1000.0) / 1000.0,
+            wrap_angle(round(odo[2] / ANGLE_UNIT) * ANGLE_UNIT),
+        )
+
+
+def steer_to(
+    robot: DiffDriveRobot, target: tuple[float, float], speed_mps: float, max_turn_radps: float
+) -> bool:
+    """Command the wheels towards ``target``; True once it is within 0.15 m."""
+    tx, ty = target
+    p = robot.pose
+    dx, dy = tx - p.x, ty - p.y
+    reached = math.hypot(dx, dy) < 0.15
+    err = wrap_angle(math.atan2(dy, dx) - p.theta)
+    w = max(-max_turn_radps, min(max_turn_radps, 2.0 * err))
+    v = 0.0 if abs(err) > 20 * DEG else speed_mps * max(0.3, math.cos(err))
+    base = robot.wheelbase_m
+    robot.command_wheels(v - 0.5 * w * base, v + 0.5 * w * base)
+    return reached
+
+
+def gyro_sample(stamp: int, rate: float, angle: float) -> GyroSample:
+    """The CruzCore packet: rate and integrated angle quantised to its 0.01 deg(/s) LSB."""
+    return GyroSample(
+        stamp,
+        round(rate / GYRO_LSB) * GYRO_LSB,
+        round(angle / GYRO_LSB) * GYRO_LSB,
+        wrap_angle(round(angle / GYRO_LSB) * GYRO_LSB),
+    )
+
+
+def odometry_message(stamp: int, robot: DiffDriveRobot, pose: Pose2D) -> RobotOdometry:
+    """What the ARCOS driver reports for a SIP with ``pose``: wheel speeds, flags, battery."""
+    moving = abs(robot.left_cmd_mps) > 5e-4 or abs(robot.right_cmd_mps) > 5e-4
+    return RobotOdometry(
+        stamp,
+        pose,
+        robot.left_cmd_mps,
+        robot.right_cmd_mps,
+        robot.speed_mps,
+        robot.yaw_rate_radps,
+        12.5,
+        moving,
+        True,
+    )  # fmt: skip
+
+
+def gps_fix(stamp: int, truth: Pose2D, err: np.ndarray, gps: GpsErrorModel) -> GpsFix:
+    """A 3D fix at the true position plus the model's error, with the sigma GST claims."""
+    sigma = gps.horizontal_sigma_m
+    return GpsFix(
+        stamp,
+        mode=3,
+        quality=1,
+        satellites=9,
+        hdop=gps.hdop,
+        std_lat_m=sigma,
+        std_lon_m=sigma,
+        east_m=truth.x + float(err[0]),
+        north_m=truth.y + float(err[1]),
+    )  # fmt: skip
+
+
 def simulate(
     seed: int,
     length_m: float,
@@ -77,19 +161,16 @@ def simulate(
     gps: GpsErrorModel | None = None,
     with_gps: bool = True,
 ) -> SimRun:
+    """One run (see the module docstring): rest, then the seed's route until ``length_m``."""
     rng = np.random.default_rng(seed)
     robot = DiffDriveRobot("r1", slip=slip or SlipModel(), seed=seed + 1)
     gyro = gyro or GyroErrorModel(seed=seed + 2)
     gps = gps or GpsErrorModel(seed=seed + 3)
     run = SimRun(seed, length_m, gyro_scale=gyro.scale, gyro_bias_degps=gyro.bias_radps / DEG)
-    base = robot.wheelbase_m
     wps = route(rng, length_m)
     wp = 0
-    odo = [0.0, 0.0, 0.0]  # firmware odometry (m, m, rad), nominal wheel base
-    ticks = (robot.left_ticks, robot.right_ticks)
-    k = 1.0 / robot.ticks_per_m
+    firmware = FirmwareOdometry(robot)
     g_angle = 0.0
-    sigma_gps = gps.horizontal_sigma_m
     n_rest = int(round(rest_s / dt))
     stamp = 0
     step = 0
@@ -100,54 +181,14 @@ def simulate(
         stamp += dt_ns
         if step <= n_rest or wp >= len(wps):
             robot.command_wheels(0.0, 0.0)
-        else:
-            tx, ty = wps[wp]
-            p = robot.pose
-            dx, dy = tx - p.x, ty - p.y
-            if math.hypot(dx, dy) < 0.15:
-                wp += 1
-            err = wrap_angle(math.atan2(dy, dx) - p.theta)
-            w = max(-max_turn_radps, min(max_turn_radps, 2.0 * err))
-            v = 0.0 if abs(err) > 20 * DEG else speed_mps * max(0.3, math.cos(err))
-            robot.command_wheels(v - 0.5 * w * base, v + 0.5 * w * base)
+        elif steer_to(robot, wps[wp], speed_mps, max_turn_radps):
+            wp += 1
         robot.step(dt)
         rate = gyro.sample(robot.yaw_rate_radps, dt)
         g_angle += rate * dt
-        run.messages.append(
-            GyroSample(
-                stamp,
-                round(rate / GYRO_LSB) * GYRO_LSB,
-                round(g_angle / GYRO_LSB) * GYRO_LSB,
-                wrap_angle(round(g_angle / GYRO_LSB) * GYRO_LSB),
-            )
-        )
+        run.messages.append(gyro_sample(stamp, rate, g_angle))
         if step % odo_every == 0:
-            lt, rt = robot.left_ticks, robot.right_ticks
-            dl, dr = (lt - ticks[0]) * k, (rt - ticks[1]) * k
-            ticks = (lt, rt)
-            d, dth = 0.5 * (dl + dr), (dr - dl) / base
-            odo[0] += d * math.cos(odo[2] + 0.5 * dth)
-            odo[1] += d * math.sin(odo[2] + 0.5 * dth)
-            odo[2] = wrap_angle(odo[2] + dth)
-            moving = abs(robot.left_cmd_mps) > 5e-4 or abs(robot.right_cmd_mps) > 5e-4
-            pose = Pose2D(
-                round(odo[0] * 1000.0) / 1000.0,
-                round(odo[1] * 1000.0) / 1000.0,
-                wrap_angle(round(odo[2] / ANGLE_UNIT) * ANGLE_UNIT),
-            )
-            run.messages.append(
-                RobotOdometry(
-                    stamp,
-                    pose,
-                    robot.left_cmd_mps,
-                    robot.right_cmd_mps,
-                    robot.speed_mps,
-                    robot.yaw_rate_radps,
-                    12.5,
-                    moving,
-                    True,
-                )  # fmt: skip
-            )
+            run.messages.append(odometry_message(stamp, robot, firmware.update(robot)))
             run.odo_stamps.append(stamp)
             run.truth.append(robot.pose)
             run.distance_m.append(robot.distance_m)
@@ -156,19 +197,7 @@ def simulate(
         if with_gps and step % gps_every == 0:
             err = gps.sample(gps_every * dt)
             if err is not None:
-                run.messages.append(
-                    GpsFix(
-                        stamp,
-                        mode=3,
-                        quality=1,
-                        satellites=9,
-                        hdop=gps.hdop,
-                        std_lat_m=sigma_gps,
-                        std_lon_m=sigma_gps,
-                        east_m=robot.pose.x + float(err[0]),
-                        north_m=robot.pose.y + float(err[1]),
-                    )  # fmt: skip
-                )
+                run.messages.append(gps_fix(stamp, robot.pose, err, gps))
     return run
 
 

@@ -82,7 +82,8 @@ def _arcos_codec(cfg: RobotConfig) -> Any:
 
 
 def _arcos_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:
-    from fakes.pioneer import PioneerConfig, PioneerEmulator, PioneerFaults
+    from fakes.pioneer import PioneerEmulator, PioneerFaults
+    from fakes.pioneer_config import PioneerConfig
 
     faults = PioneerFaults(cfg.simulation.corrupt, knobs.drop, knobs.vanish_after, knobs.vanish_for)
     pc = PioneerConfig(name=cfg.name, baud=knobs.baud)

@@ -23,7 +23,8 @@ from conftest import pump
 from drivers.arcos.commands import encode_command
 from drivers.arcos.driver import ArcosDriver, ArcosOptions
 from drivers.arcos.packet import PacketParser, frame
-from fakes.pioneer import PioneerConfig, PioneerEmulator
+from fakes.pioneer import PioneerEmulator
+from fakes.pioneer_config import PioneerConfig
 from fakes.pty import VirtualSerialPort
 from fakes.runner import FakeRunner
 from fakes.world import World
@@ -185,7 +186,7 @@ def test_aria_connect_sequence_config_and_drive(fake):
     truth = runner.world.robots["r1"].pose
     aria.close()
     time.sleep(0.15)
-    assert sips >= 40 and emu.unknown_commands == 0 and not emu.opened
+    assert sips >= 40 and emu.session.unknown_commands == 0 and not emu.session.opened
     robot = runner.world.robots["r1"]
     assert robot.left_cmd_mps == 0.0 and robot.right_cmd_mps == 0.0
     x, y, th = aria.pose
@@ -201,7 +202,7 @@ def test_aria_closes_a_robot_left_open_and_reconnects(fake):
     os.close(first.fd)  # the program died without CLOSE: SIPs keep coming
     second = AriaLikeClient(runner.ports()["arcos"])
     assert second.connect()[0] == "aria-twin"
-    assert second.closes_sent >= 1 and emu.sessions == 2
+    assert second.closes_sent >= 1 and emu.session.sessions == 2
     assert second.run(0.5) >= 3
     second.close()
 
@@ -282,7 +283,7 @@ def test_reconnect_after_the_robot_goes_silent(fake):
     end = time.monotonic() + 10
     while time.monotonic() < end and not d.connected:
         pump(d, 0.2)
-    assert d.connected and d.reconnects == 1 and emu.sessions == 2
+    assert d.connected and d.reconnects == 1 and emu.session.sessions == 2
     assert pump(d, 0.5) is not None
     d.close()
 
@@ -294,9 +295,9 @@ def test_controller_reset_packet_triggers_a_reconnect(fake):
     pump(d, 0.3)
     emu.controller_reset()
     end = time.monotonic() + 6
-    while time.monotonic() < end and emu.sessions < 2:
+    while time.monotonic() < end and emu.session.sessions < 2:
         pump(d, 0.2)
-    assert d.connected and d.reconnects == 1 and emu.sessions == 2
+    assert d.connected and d.reconnects == 1 and emu.session.sessions == 2
     assert "0xFF" in d.last_error
     d.close()
 

@@ -41,7 +41,7 @@ def test_handshake_info_and_sips(fake):
     assert diag.connected and diag.frames_ok >= 4 and diag.bad_checksums == 0
     d.close()
     time.sleep(0.2)
-    assert not emu.opened  # CLOSE ended the session
+    assert not emu.session.opened  # CLOSE ended the session
 
 
 def test_drive_and_pose_matches_truth(fake):
@@ -77,7 +77,7 @@ def test_watchdog_stops_the_robot_when_the_driver_goes_silent(fake):
     robot = runner.world.robots["r1"]
     assert robot.left_cmd_mps > 0.2
     time.sleep(3.5)  # no reads, no pulses: the firmware's 2 s watchdog trips
-    assert emu.watchdog_trips == 1
+    assert emu.session.watchdog_trips == 1
     assert robot.left_cmd_mps == 0.0 and robot.right_cmd_mps == 0.0
     d.close()
 
@@ -88,7 +88,7 @@ def test_keepalive_prevents_watchdog(fake):
     d.open()
     d.set_velocity(0.2, 0.0)
     pump(d, 3.0)  # only reads: the driver's pulses keep the robot going
-    assert emu.watchdog_trips == 0 and runner.world.robots["r1"].left_cmd_mps > 0.1
+    assert emu.session.watchdog_trips == 0 and runner.world.robots["r1"].left_cmd_mps > 0.1
     d.close()
 
 
@@ -117,7 +117,7 @@ def test_already_open_robot_is_closed_and_resynced(fake):
     first._t = None
     second = ArcosDriver(runner.ports()["arcos"])
     info = second.open()
-    assert info.name == "hilnav-fake" and emu.sessions == 2
+    assert info.name == "hilnav-fake" and emu.session.sessions == 2
     second.close()
 
 
