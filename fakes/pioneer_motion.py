@@ -61,6 +61,7 @@ class DriveModel:
         self.rot_decel = float(self.cfg.rot_decel_degps2)
         self.trans_max = float(self.cfg.trans_vel_max_mmps)
         self.rot_max = float(self.cfg.rot_vel_max_degps)
+        self._paused: tuple | None = None
 
     def attach(self, robot: DiffDriveRobot) -> None:
         """Power up on ``robot``: at rest, odometry at zero, its encoder counts as the base."""
@@ -120,11 +121,40 @@ class DriveModel:
             return False
         return True
 
-    def decelerate_to_stop(self) -> None:
-        """Zero the velocity targets: the wheels slow down within the deceleration limits."""
-        self.mode = "vel"
+    def time_to_stop(self) -> float:
+        """Seconds the wheels need to come to rest at the current deceleration limits."""
+        lw, rw = self.cur_wheels
+        t_trans = max(abs(self.cur_trans), abs(lw), abs(rw)) / max(self.trans_decel, 1e-9)
+        return max(t_trans, abs(self.cur_rot) / max(self.rot_decel, 1e-9))
+
+    def pause(self, within_s: float) -> None:
+        """The watchdog: come to rest within ``within_s`` (decelerating harder than the
+        limits if they would take longer), keeping the motion to resume later."""
+        self._paused = (
+            self.mode, self.trans_target, self.rot_target, self.wheel_target,
+            self.head_target, self.move_left, self.trans_decel, self.rot_decel,
+        )  # fmt: skip
+        lw, rw = self.cur_wheels
+        within_s = max(within_s, 1e-3)
+        speed = max(abs(self.cur_trans), abs(lw), abs(rw))
+        self.trans_decel = max(self.trans_decel, speed / within_s)
+        self.rot_decel = max(self.rot_decel, abs(self.cur_rot) / within_s)
+        self.mode = "wheels" if self.mode == "wheels" else "vel"
         self.trans_target = self.rot_target = 0.0
         self.wheel_target = (0.0, 0.0)
+
+    def resume(self) -> None:
+        """Communication is back: the motion the watchdog paused goes on (P3 manual)."""
+        if self._paused is None:
+            return
+        (self.mode, self.trans_target, self.rot_target, self.wheel_target,
+         self.head_target, self.move_left, self.trans_decel, self.rot_decel) = self._paused  # fmt: skip
+        self._paused = None
+
+    def halt(self) -> None:
+        """At rest at once (the watchdog's last resort), the paused motion kept."""
+        self.cur_trans = self.cur_rot = 0.0
+        self.cur_wheels = (0.0, 0.0)
 
     def _halt(self, estop: bool) -> None:
         """STOP (or ESTOP, which also latches until ENABLE): at rest at once."""

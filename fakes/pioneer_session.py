@@ -3,9 +3,11 @@
 ``ArcosSession`` takes the command packets the port received, in order:
 
 - before OPEN, SYNC0/SYNC1 are answered with bare echoes and SYNC2 with name, class and
-  subclass; OPEN after a complete handshake starts a session (``_handshake``);
-- the watchdog (``check_watchdog``, called every SIP cycle) stops the motors when no
-  packet has arrived for ``watchdog_ms``; the next packet re-arms it;
+  subclass; OPEN (with or without its argument: the manual's "OPEN 1 none") after a
+  complete handshake starts a session (``_handshake``);
+- the watchdog (``check_watchdog``, called every SIP cycle) has the wheels at rest
+  ``watchdog_ms`` after the last packet (deceleration included); the next packet resumes
+  the motion, as the Pioneer 3 manual says;
 - in a session, CLOSE forgets it, CONFIG is answered, ENCODER 2 turns the ENCODER stream
   on, and the motion commands go to the drive (``fakes.pioneer_motion.DriveModel``);
   anything else is counted as unknown.
@@ -55,7 +57,10 @@ class ArcosSession:
     def receive(self, cid: int, data: bytes) -> None:
         """One command packet (ID ``cid``, argument bytes ``data``) from the host."""
         self.last_rx = time.monotonic()
-        self.watchdog_tripped = False
+        if self.watchdog_tripped:
+            self.watchdog_tripped = False
+            if self.opened:  # CLOSE resumes nothing: it resets the session below
+                self.drive.resume()
         try:
             arg = decode_argument(data)
         except ValueError:
@@ -69,6 +74,10 @@ class ArcosSession:
     # -- handshake, OPEN and the watchdog -------------------------------------------------
     def _handshake(self, cid: int, arg: int | bytes | None) -> None:
         """SYNC0, SYNC1, SYNC2 (each answered), then OPEN starts the session."""
+        if cid == Cmd.OPEN and self.sync_state == 3:  # "OPEN 1 none": also without argument
+            self.opened = True
+            self.sessions += 1
+            return
         if cid in (0, 1, 2) and arg is None:
             if cid == 0:
                 self.sync_state = 1
@@ -80,18 +89,23 @@ class ArcosSession:
                 self.sync_state = 3
                 self._send(2, encode_sync2(self.cfg.name, self.cfg.robot_class, self.cfg.subclass))
             return
-        if cid == Cmd.OPEN and self.sync_state == 3:
-            self.opened = True
-            self.sessions += 1
 
     def check_watchdog(self, now: float) -> None:
-        """Stop the motors once when nothing has arrived for ``watchdog_ms`` in a session."""
-        if not self.opened or self.cfg.watchdog_ms <= 0:
+        """The wheels are at rest ``watchdog_ms`` after the last packet: the stop begins a
+        ramp (at most half the timeout, harder than the limits if need be) before it, and
+        anything still moving at the timeout stops at once. The motion resumes with the
+        next packet."""
+        limit = self.cfg.watchdog_ms / 1000.0
+        if not self.opened or limit <= 0:
             return
-        if now - self.last_rx > self.cfg.watchdog_ms / 1000.0 and not self.watchdog_tripped:
+        silent = now - self.last_rx
+        ramp = min(self.drive.time_to_stop(), limit / 2.0) + self.cfg.sip_cycle_ms / 1000.0
+        if not self.watchdog_tripped and silent >= limit - ramp:
             self.watchdog_tripped = True
             self.watchdog_trips += 1
-            self.drive.decelerate_to_stop()
+            self.drive.pause(max(limit - silent - self.cfg.sip_cycle_ms / 1000.0, 0.0))
+        if self.watchdog_tripped and silent >= limit - self.cfg.sip_cycle_ms / 1000.0:
+            self.drive.halt()
 
     # -- commands in a session ------------------------------------------------------------
     def _command(self, cid: int, arg: int | bytes | None) -> None:

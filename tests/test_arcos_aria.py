@@ -298,7 +298,7 @@ def test_controller_reset_packet_triggers_a_reconnect(fake):
     while time.monotonic() < end and emu.session.sessions < 2:
         pump(d, 0.2)
     assert d.connected and d.reconnects == 1 and emu.session.sessions == 2
-    assert "0xFF" in d.last_error
+    assert "0xFF" in d.last_drop and d.last_error == ""  # reconnected: no error left
     d.close()
 
 

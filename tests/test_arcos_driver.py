@@ -79,7 +79,68 @@ def test_watchdog_stops_the_robot_when_the_driver_goes_silent(fake):
     time.sleep(3.5)  # no reads, no pulses: the firmware's 2 s watchdog trips
     assert emu.session.watchdog_trips == 1
     assert robot.left_cmd_mps == 0.0 and robot.right_cmd_mps == 0.0
+    # communication restored (a PULSE): the motion resumes, as the P3 manual says
+    last = pump(d, 1.5)
+    assert emu.session.watchdog_trips == 1 and last.linear_vel_mps > 0.2
     d.close()
+
+
+def _session(watchdog_ms: int = 2000):
+    from drivers.arcos.commands import ARG_INT, ARG_NINT, Cmd
+    from drivers.arcos.params import P3DX_SH
+    from fakes.pioneer_config import PioneerConfig
+    from fakes.pioneer_motion import DriveModel
+    from fakes.pioneer_session import ArcosSession
+
+    sent: list[int] = []
+    cfg = PioneerConfig(watchdog_ms=watchdog_ms)
+    drive = DriveModel(cfg, P3DX_SH)
+    drive.half_base_mm = 165.0
+    session = ArcosSession(cfg, drive, lambda cid, data: sent.append(cid))
+
+    def encode_argument(n: int) -> bytes:
+        return bytes([ARG_INT if n >= 0 else ARG_NINT, abs(n) & 0xFF, abs(n) >> 8])
+
+    return session, drive, sent, Cmd, encode_argument
+
+
+@pytest.mark.parametrize(("vel", "rvel"), [(300, 0), (1500, 0), (0, 300), (-1200, 200)])
+def test_the_wheels_rest_by_the_watchdog_timeout_after_the_last_byte(vel, rvel):
+    """Deceleration included, whatever the speed (a faster stop than the limits if they
+    would take longer); firmware time is simulated in 10 ms steps."""
+    session, drive, _, cmd, arg = _session()
+    for c in (0, 1, 2):
+        session.receive(c, b"")
+    session.receive(cmd.OPEN, b"")
+    for c, n in ((cmd.ENABLE, 1), (cmd.SETA, 3000), (cmd.VEL, vel), (cmd.RVEL, rvel)):
+        session.receive(c, arg(n))
+    t0 = session.last_rx
+    dt, t = 0.01, 0.0
+    for _ in range(300):  # 3 s to reach speed (no watchdog yet: packets keep coming)
+        drive.step(dt)
+        session.last_rx = t0 + t
+        t += dt
+    assert drive.time_to_stop() > 0.0
+    last = session.last_rx
+    moving_at = []
+    for k in range(300):  # now silence: 3 s, the SIP cycle checks every 100 ms
+        now = last + k * dt
+        if k % 10 == 0:
+            session.check_watchdog(now)
+        if max(abs(v) for v in drive.step(dt)) > 0.0:
+            moving_at.append(now - last)
+    assert moving_at and max(moving_at) < 2.0
+    assert session.watchdog_trips == 1
+
+
+def test_a_bare_open_after_the_handshake_opens_the_session():
+    """The manual lists "OPEN 1 none": AMRISim accepts OPEN without an argument."""
+    session, _, sent, cmd, _ = _session()
+    for c in (0, 1, 2):
+        session.receive(c, b"")
+    assert sent == [0, 1, 2] and not session.opened
+    session.receive(cmd.OPEN, b"")  # ID 1, like SYNC1: after SYNC2 it means OPEN
+    assert session.opened and session.sessions == 1 and sent == [0, 1, 2]
 
 
 def test_keepalive_prevents_watchdog(fake):

@@ -65,6 +65,7 @@ class ArcosDriver(LinkDiagnostics):
         self.connected = False
         self.reconnects = 0
         self.last_error = ""
+        self.last_drop = ""
         self._t: Transport | None = None
         self._lock = threading.Lock()
         self._last_tx = 0.0
@@ -179,7 +180,7 @@ class ArcosDriver(LinkDiagnostics):
         return self.codec.params
 
     def _drop_link(self, why: str) -> None:
-        self.last_error = why
+        self.last_error = self.last_drop = why  # last_error clears on reconnect; this stays
         self.connected = False
         with self._lock:
             if self._t is not None:
