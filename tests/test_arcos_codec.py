@@ -181,3 +181,21 @@ def test_garbage_never_crashes_and_resyncs(noise, cuts):
         pos = max(pos, cut)
     # Garbage may swallow at most the first packet (a stray FA FB may claim its bytes).
     assert 1 <= len([m for m in got if isinstance(m, RobotOdometry)]) <= 2
+
+
+def test_moving_comes_from_the_velocities_when_every_sip_says_stopped():
+    """AMRISim sends every SIP as type 0x32; the Pioneer sends 0x33 while moving."""
+    from drivers.arcos import ArcosCodec, frame
+    from drivers.arcos.packets import SIP_MOVING, SIP_STOPPED, encode_sip
+
+    base = {"XPOS": 100, "YPOS": 200, "THPOS": 5, "BATTERY": 128, "FLAGS": 1,
+            "BATTERYX10": 128, "FAULTFLAGS": 0}  # fmt: skip
+    stream = [
+        frame(SIP_STOPPED, encode_sip({**base, "L_VEL": 100, "R_VEL": 120, "ROTVEL": 10})),
+        frame(SIP_STOPPED, encode_sip({**base, "L_VEL": 0, "R_VEL": 0, "ROTVEL": 5})),
+        frame(SIP_STOPPED, encode_sip({**base, "L_VEL": 0, "R_VEL": 0, "ROTVEL": 0})),
+        frame(SIP_MOVING, encode_sip({**base, "L_VEL": 0, "R_VEL": 0, "ROTVEL": 0})),
+    ]
+    codec = ArcosCodec()
+    got = [m.moving for m in codec.feed(b"".join(stream), 1) if hasattr(m, "moving")]
+    assert got == [True, True, False, True]

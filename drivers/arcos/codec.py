@@ -131,7 +131,9 @@ class ArcosCodec:
             linear_vel_mps=0.5 * (lv + rv),
             angular_vel_radps=w,
             battery_v=battery,
-            moving=pkt.packet_id == SIP_MOVING,
+            # AMRISim sends every SIP as type 0x32 ("stopped"): the velocities say it too
+            moving=pkt.packet_id == SIP_MOVING
+            or any(raw.get(k, 0) != 0 for k in ("L_VEL", "R_VEL", "ROTVEL")),
             motors_enabled=bool(flags & 0x1),
             estop=bool(flags & 0x20),
             left_stall=bool(sb & 0x1),
