@@ -4,14 +4,20 @@ Exponential backoff from ``initial_s`` to ``max_s`` between failed attempts, but
 that is a local path (a serial device, a pty, the slcan adapter's port) is watched
 cheaply: while its path is absent nothing is tried, and the moment it exists again the
 next attempt is made at once, so a replugged cable is back within one read timeout. A
-success resets the backoff. Pure apart from the path check (the caller passes the
-monotonic time).
+success resets the backoff. :class:`Reconnect` is pure apart from
+the path check (the caller passes the monotonic time); :class:`ReconnectingLink` is the
+bookkeeping every byte-link driver shares (drop the link, try it again).
 """
 
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass
+from typing import Any
+
+from drivers.base import DeviceError
+from drivers.transport import LinkLost
 
 POLL_S = 0.05  # how often a driver without a link looks for its port
 
@@ -64,3 +70,34 @@ class Reconnect:
     def succeeded(self) -> None:
         self.backoff_s = self.initial_s
         self._absent = False
+
+
+class ReconnectingLink:
+    """Mixin of a driver on one transport: expects ``open()``, ``_t`` (the transport),
+    ``_lock``, ``_rc`` (a :class:`Reconnect`), ``connected``, ``reconnects`` and
+    ``last_error``. ``last_drop`` keeps why the link last went (``last_error`` is cleared
+    when it comes back)."""
+
+    _t: Any
+    _lock: Any
+    _rc: Reconnect
+    last_drop: str = ""
+
+    def _drop_link(self, why: str) -> None:
+        self.last_error = self.last_drop = why
+        self.connected = False
+        with self._lock:
+            if self._t is not None:
+                self._t.close()
+                self._t = None
+        self._rc.lost(time.monotonic())
+
+    def _try_reconnect(self) -> None:
+        if not self._rc.due(time.monotonic()):
+            return
+        try:
+            self.open()  # type: ignore[attr-defined]
+            self.reconnects += 1
+        except (DeviceError, LinkLost, OSError) as exc:
+            self.last_error = str(exc)
+            self._rc.failed(time.monotonic())

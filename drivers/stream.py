@@ -15,11 +15,11 @@ import time
 from typing import Any
 
 from drivers.base import Clock, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
-from drivers.reconnect import Reconnect, local_path
+from drivers.reconnect import Reconnect, ReconnectingLink, local_path
 from drivers.transport import FileTransport, LinkLost, Transport, open_transport
 
 
-class StreamDriver(LinkDiagnostics):
+class StreamDriver(LinkDiagnostics, ReconnectingLink):
     """Base of the streaming sensor drivers (see the module docstring)."""
 
     device = "stream"
@@ -81,25 +81,6 @@ class StreamDriver(LinkDiagnostics):
             except LinkLost as exc:
                 self.last_error = str(exc)
                 return False
-
-    def _drop_link(self, why: str) -> None:
-        self.last_error = why
-        self.connected = False
-        with self._lock:
-            if self._t is not None:
-                self._t.close()
-                self._t = None
-        self._rc.lost(time.monotonic())
-
-    def _try_reconnect(self) -> None:
-        if not self._rc.due(time.monotonic()):
-            return
-        try:
-            self.open()
-            self.reconnects += 1
-        except (DeviceError, OSError) as exc:
-            self.last_error = str(exc)
-            self._rc.failed(time.monotonic())
 
     @property
     def is_file(self) -> bool:

@@ -30,7 +30,7 @@ from drivers.nmea.local import Datum
 from drivers.nmea.sentences import time_of_day_ms
 from drivers.nmea.writer import DEFAULT_TYPES, epoch_sentences
 from fakes.pty import VirtualSerialPort
-from fakes.streaming import PtyStreamEmulator
+from fakes.streaming import PortEmulator, PtyStreamEmulator
 from fakes.world.gps_model import GpsErrorModel
 from msgs import GpsFix
 
@@ -148,7 +148,7 @@ def _epoch_time(chunk: bytes) -> int | None:
     return None
 
 
-class NmeaReplayEmulator:
+class NmeaReplayEmulator(PortEmulator):
     """A recorded NMEA log on a pty (see the module docstring); not driven by the world."""
 
     def __init__(
@@ -159,8 +159,8 @@ class NmeaReplayEmulator:
         loop: bool = False,
         wait_for_reader_s: float = 60.0,
     ) -> None:
+        super().__init__(name)
         self.wait_for_reader_s = wait_for_reader_s
-        self.name = name
         self.path = Path(path)
         try:
             raw = self.path.read_bytes()
@@ -171,48 +171,25 @@ class NmeaReplayEmulator:
             raise ValueError(f"--replay gps={path}: no NMEA sentences in the file")
         self.fast = fast
         self.loop = loop
-        self.port: VirtualSerialPort | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self.sent_epochs = 0
         self.done = threading.Event()
 
     def start(self, runner) -> None:  # noqa: ANN001
-        self.port = VirtualSerialPort(runner.link_dir / self.name)
-        assert self.port.master is not None
-        fcntl.ioctl(self.port.master, termios.TIOCPKT, struct.pack("i", 1))
-        self._thread = threading.Thread(target=self._serve, name=f"replay-{self.name}", daemon=True)
-        self._thread.start()
+        self._open(runner, prefix="replay")
+
+    def _on_port(self, port: VirtualSerialPort) -> None:
+        assert port.master is not None
+        fcntl.ioctl(port.master, termios.TIOCPKT, struct.pack("i", 1))
 
     def tick(self, dt: float) -> None:
         pass
 
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-        if self.port is not None:
-            self.port.close()
-
-    def ports(self) -> dict[str, str]:
-        return {self.name: self.port.path} if self.port else {}
-
     def _write_all(self, data: bytes) -> bool:
         """Blocking write that gives up when stopping (fast mode waits for the reader)."""
-        view = memoryview(data)
-        while view and not self._stop.is_set():
-            fd = self.port.master if self.port else None
-            if fd is None:
-                return False
-            try:
-                n = os.write(fd, view)
-            except BlockingIOError:
-                select.select([], [fd], [], 0.05)
-                continue
-            except OSError:
-                return False
-            view = view[n:]
-        return not view
+        port = self.port
+        if port is None or port.master is None:
+            return False
+        return port.write(data, stop=self._stop) == 0 and not self._stop.is_set()
 
     def _wait_for_reader(self) -> None:
         """Until the reader opens the port (a FLUSHREAD packet-mode event) or time is up."""

@@ -37,7 +37,7 @@ from fakes.pioneer_config import PioneerConfig
 from fakes.pioneer_motion import DriveModel
 from fakes.pioneer_packets import sip_packet
 from fakes.pioneer_session import ArcosSession
-from fakes.pty import VirtualSerialPort
+from fakes.streaming import PortEmulator
 
 
 @dataclass
@@ -50,7 +50,7 @@ class PioneerFaults:
     vanish_for_s: float = 2.0
 
 
-class PioneerEmulator:
+class PioneerEmulator(PortEmulator):
     """ARCOS firmware for one world robot (see the module docstring).
 
     ``session`` is the session layer (``opened``, ``sessions``, ``watchdog_trips``,
@@ -66,17 +66,14 @@ class PioneerEmulator:
         seed: int = 0,
         device_name: str = "arcos",
     ) -> None:
-        self.name = device_name
+        super().__init__(device_name)
         self.robot_name = robot
         self.cfg = config or PioneerConfig()
         self.faults = faults or PioneerFaults()
         self.params = params
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()
-        self.port: VirtualSerialPort | None = None
         self._runner = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self.drive = DriveModel(self.cfg, params)
         self.session = ArcosSession(self.cfg, self.drive, self._send)
         self.hung = False
@@ -85,20 +82,8 @@ class PioneerEmulator:
     def start(self, runner) -> None:  # noqa: ANN001 (FakeRunner; avoids an import cycle)
         self._runner = runner
         self.drive.attach(runner.world.robots[self.robot_name])
-        self.port = VirtualSerialPort(runner.link_dir / self.name, baud=self.cfg.baud)
         self._t0 = time.monotonic()
-        self._thread = threading.Thread(target=self._serve, name=f"fake-{self.name}", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-        if self.port is not None:
-            self.port.close()
-
-    def ports(self) -> dict[str, str]:
-        return {self.name: self.port.path} if self.port else {}
+        self._open(runner, baud=self.cfg.baud)
 
     def vanish(self) -> None:
         if self.port:

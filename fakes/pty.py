@@ -64,24 +64,33 @@ class VirtualSerialPort:
         except (OSError, ValueError):
             return b""
 
-    def write(self, data: bytes) -> None:
-        """Send bytes to the driver, paced at ``baud`` if set; dropped while vanished."""
+    def write(
+        self, data: bytes, *, block: bool = True, stop: threading.Event | None = None
+    ) -> int:
+        """Send bytes to the driver, paced at ``baud`` if set; dropped while vanished.
+
+        Blocking (default): waits while the pty's buffer is full, until ``stop`` is set.
+        ``block=False``: what does not fit in the buffer is lost, as on a real UART.
+        Returns how many bytes were lost for a full buffer."""
         with self._lock:
             fd = self.master
             if fd is None:
-                return
+                return 0
             view = memoryview(data)
-            while view:
+            while view and not (stop is not None and stop.is_set()):
                 try:
                     n = os.write(fd, view)
                 except BlockingIOError:
+                    if not block:
+                        return len(view)
                     select.select([], [fd], [], 0.05)
                     continue
                 except OSError:
-                    return
+                    return 0
                 view = view[n:]
             if self.baud:
                 time.sleep(len(data) * 10.0 / self.baud)
+            return len(view)
 
     def vanish(self) -> None:
         """Close the pty and remove the link: the driver sees its port disappear."""

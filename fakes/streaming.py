@@ -9,30 +9,36 @@ and hands it to ``on_input`` (commands).
 from __future__ import annotations
 
 import contextlib
-import os
 import threading
 
 from fakes.pty import VirtualSerialPort
 
 
-class PtyStreamEmulator:
-    name = "stream"
+class PortEmulator:
+    """An emulated device on one virtual serial port, served by a thread of its own."""
 
-    def __init__(self, name: str, robot: str = "r1") -> None:
+    name = "port"
+
+    def __init__(self, name: str) -> None:
         self.name = name
-        self.robot_name = robot
         self.port: VirtualSerialPort | None = None
-        self._runner = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self.bytes_dropped = 0
-        self.lock = threading.Lock()
 
-    def start(self, runner) -> None:  # noqa: ANN001 (FakeRunner; avoids an import cycle)
-        self._runner = runner
-        self.port = VirtualSerialPort(runner.link_dir / self.name)
-        self._thread = threading.Thread(target=self._serve, name=f"fake-{self.name}", daemon=True)
+    def _open(self, runner, baud: int | None = None, prefix: str = "fake") -> None:  # noqa: ANN001
+        """Create the port under the runner's link directory and start serving it."""
+        self.port = VirtualSerialPort(runner.link_dir / self.name, baud=baud)
+        self._on_port(self.port)
+        self._thread = threading.Thread(
+            target=self._serve, name=f"{prefix}-{self.name}", daemon=True
+        )
         self._thread.start()
+
+    def _on_port(self, port: VirtualSerialPort) -> None:
+        """Set the new port up before its thread starts (subclasses)."""
+
+    def _serve(self) -> None:
+        """The port's thread (subclasses)."""
 
     def stop(self) -> None:
         self._stop.set()
@@ -44,22 +50,25 @@ class PtyStreamEmulator:
     def ports(self) -> dict[str, str]:
         return {self.name: self.port.path} if self.port else {}
 
+
+class PtyStreamEmulator(PortEmulator):
+    name = "stream"
+
+    def __init__(self, name: str, robot: str = "r1") -> None:
+        super().__init__(name)
+        self.robot_name = robot
+        self._runner = None
+        self.bytes_dropped = 0
+        self.lock = threading.Lock()
+
+    def start(self, runner) -> None:  # noqa: ANN001 (FakeRunner; avoids an import cycle)
+        self._runner = runner
+        self._open(runner)
+
     def send(self, data: bytes) -> None:
         """Non-blocking write; what does not fit in the pty buffer is lost."""
-        port = self.port
-        fd = port.master if port is not None else None
-        if fd is None:
-            return
-        view = memoryview(data)
-        while view:
-            try:
-                n = os.write(fd, view)
-            except BlockingIOError:
-                self.bytes_dropped += len(view)
-                return
-            except OSError:
-                return
-            view = view[n:]
+        if self.port is not None:
+            self.bytes_dropped += self.port.write(data, block=False)
 
     def _serve(self) -> None:
         while not self._stop.is_set():

@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 from fusion.arrival import ArrivalOrder
 from fusion.increments import NS, GyroDelta, GyroDeltas, OdometryDeltas, OdometryStep, RestBias
@@ -304,3 +304,23 @@ class GyroOdometryAlignment:
         d.dtheta_enc += step.dtheta_rad
         d.var_enc += var_enc
         d.moving = d.moving or not step.at_rest
+
+
+class AlignedInput:
+    """Mixin of a filter fed through a :class:`GyroOdometryAlignment` (``self._align``):
+    the message-level ``feed`` calls, each handing the front end's step to the filter's
+    ``_advanced`` (which returns the filter's estimate message)."""
+
+    _align: GyroOdometryAlignment
+
+    def _advanced(self, a: Advance | None) -> Any:
+        raise NotImplementedError
+
+    def feed_gyro(self, msg: GyroSample) -> Any:
+        """Take a gyro sample; an estimate only if it released held odometry (``arrival``)."""
+        a = self._align.feed_gyro(msg, self)  # type: ignore[arg-type]
+        return None if a is None else self._advanced(a)
+
+    def feed_odometry(self, msg: RobotOdometry) -> Any:
+        """Run one step on the motion since the previous odometry; None if no step ran."""
+        return self._advanced(self._align.feed_odometry(msg, self))  # type: ignore[arg-type]

@@ -62,7 +62,7 @@ from typing import Literal
 
 from scipy.stats import chi2
 
-from fusion.alignment import Advance, Deferred, GyroOdometryAlignment
+from fusion.alignment import Advance, AlignedInput, Deferred, GyroOdometryAlignment
 from fusion.arrival import ArrivalOrder
 from fusion.increments import OdometryStep
 from msgs import GyroSample, HeadingEstimate, Pose2D, RobotOdometry, wrap_angle
@@ -118,7 +118,7 @@ class HeadingCounters:
     bad_input: int = 0
 
 
-class HeadingFilter:
+class HeadingFilter(AlignedInput):
     """1-D heading Kalman filter of ir-grid-mapping eq. 1-4 (see module docstring)."""
 
     def __init__(
@@ -257,15 +257,6 @@ class HeadingFilter:
         if isinstance(msg, GyroSample):
             return self.feed_gyro(msg)
         raise TypeError(f"HeadingFilter is fed RobotOdometry or GyroSample, not {type(msg)}")
-
-    def feed_gyro(self, msg: GyroSample) -> HeadingEstimate | None:
-        """Take a gyro sample; an estimate only if it released held odometry (``arrival``)."""
-        a = self._align.feed_gyro(msg, self)
-        return None if a is None else self._advanced(a)
-
-    def feed_odometry(self, msg: RobotOdometry) -> HeadingEstimate | None:
-        """Run one step on the motion since the previous odometry; None if no step ran."""
-        return self._advanced(self._align.feed_odometry(msg, self))
 
     def _advanced(self, a: Advance | None) -> HeadingEstimate | None:
         if a is None:

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fusion.alignment import Advance, GyroOdometryAlignment
+from fusion.alignment import Advance, AlignedInput, GyroOdometryAlignment
 from fusion.arrival import ArrivalOrder
 from fusion.ekf_update import UpdateResult
 from fusion.pose_ekf_core import PoseEkfCore
@@ -60,7 +60,7 @@ NS = 1e-9
 __all__ = ["DEG", "PoseEkf", "PoseEkfParams", "UpdateResult"]
 
 
-class PoseEkf(PoseEkfCore):
+class PoseEkf(AlignedInput, PoseEkfCore):
     """EKF on (x, y, theta) fed odometry, gyro and GPS messages (see module docstring)."""
 
     def __init__(
@@ -108,15 +108,6 @@ class PoseEkf(PoseEkfCore):
         if isinstance(msg, GpsFix):
             return self.feed_gps(msg)
         raise TypeError(f"PoseEkf is fed RobotOdometry, GyroSample or GpsFix, not {type(msg)}")
-
-    def feed_gyro(self, msg: GyroSample) -> PoseEstimate | None:
-        a = self._align.feed_gyro(msg, self)
-        return None if a is None else self._advanced(a)
-
-    def feed_odometry(self, msg: RobotOdometry) -> PoseEstimate | None:
-        """Predict over the motion since the previous odometry (the alignment front end
-        decides how the gyro's change is fused); None if no step ran."""
-        return self._advanced(self._align.feed_odometry(msg, self))
 
     def _advanced(self, a: Advance | None) -> PoseEstimate | None:
         if a is None:

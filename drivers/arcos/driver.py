@@ -25,7 +25,7 @@ from drivers.arcos.packet import ArcosPacket
 from drivers.arcos.packets import RESET_ID, SIP_MOVING, SIP_STOPPED, decode_sync2
 from drivers.arcos.params import P3DX_SH, RobotParams, params_for
 from drivers.base import Clock, CodecStats, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
-from drivers.reconnect import Reconnect, local_path
+from drivers.reconnect import Reconnect, ReconnectingLink, local_path
 from drivers.transport import FileTransport, LinkLost, Transport, open_transport
 from msgs import RobotInfo, RobotOdometry, VelocityCommand
 
@@ -44,7 +44,7 @@ class ArcosOptions:
     stream_encoders: bool = False
 
 
-class ArcosDriver(LinkDiagnostics):
+class ArcosDriver(LinkDiagnostics, ReconnectingLink):
     """One Pioneer over one link (see the module docstring)."""
 
     device = "arcos"
@@ -178,25 +178,6 @@ class ArcosDriver(LinkDiagnostics):
     @property
     def params(self) -> RobotParams:
         return self.codec.params
-
-    def _drop_link(self, why: str) -> None:
-        self.last_error = self.last_drop = why  # last_error clears on reconnect; this stays
-        self.connected = False
-        with self._lock:
-            if self._t is not None:
-                self._t.close()
-                self._t = None
-        self._rc.lost(time.monotonic())
-
-    def _try_reconnect(self) -> None:
-        if not self._rc.due(time.monotonic()):
-            return
-        try:
-            self.open()
-            self.reconnects += 1
-        except (DeviceError, LinkLost, OSError) as exc:
-            self.last_error = str(exc)
-            self._rc.failed(time.monotonic())
 
     # -- the read loop ----------------------------------------------------------------
     def read(self, timeout_s: float) -> list[object]:
