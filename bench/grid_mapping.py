@@ -35,7 +35,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from drivers.sharp import STATUS_NAMES, SharpCurve  # noqa: E402
-from fakes.world import GyroErrorModel, IrErrorModel, SlipModel, World  # noqa: E402
+from fakes.world import DiffDriveRobot, GyroErrorModel, IrErrorModel, SlipModel, World  # noqa: E402
 from fusion.heading import HeadingFilter, HeadingParams  # noqa: E402
 from mapping.association import AssociationConfig, SampleAssociation  # noqa: E402
 from mapping.export import write_map, write_png  # noqa: E402
@@ -94,6 +94,99 @@ def _route(start: tuple[float, float], distance_m: float) -> list[tuple[float, f
     return pts[1:]
 
 
+def _gyro(seed: int, gyro_scale_error: float | None, perfect: bool) -> GyroErrorModel:
+    """The CruzCore's error model (no errors at all with ``perfect``)."""
+    if perfect:
+        gyro = GyroErrorModel(0.0, 0.0, 0.0, 0.0, seed=seed + 100)
+    else:
+        gyro = GyroErrorModel(seed=seed + 100)
+    if gyro_scale_error is not None:
+        gyro.scale = 1.0 + gyro_scale_error
+    return gyro
+
+
+def _boot_bias(gyro: GyroErrorModel, dt: float) -> float:
+    """Stand still 3 s: the gyro's turn-on bias is calibrated, as a robot does at boot."""
+    rates = [gyro.sample(0.0, dt) for _ in range(int(3.0 / dt))]
+    return float(np.mean(rates))
+
+
+def _steer(robot: DiffDriveRobot, target: tuple[float, float], speed_mps: float) -> bool:
+    """The operator: command the wheels towards ``target`` on the true pose; False (and
+    no command) once within 0.1 m of it."""
+    tx, ty = target
+    p = robot.pose
+    dx, dy = tx - p.x, ty - p.y
+    if math.hypot(dx, dy) < 0.1:
+        return False
+    err = wrap_angle(math.atan2(dy, dx) - p.theta)
+    w = max(-0.6, min(0.6, 2.0 * err))
+    v = 0.0 if abs(err) > 20 * DEG else speed_mps * max(0.3, math.cos(err))
+    base = robot.wheelbase_m
+    robot.command_wheels(v - 0.5 * w * base, v + 0.5 * w * base)
+    return True
+
+
+class _HeadingInput:
+    """Encoder + gyro heading (eq. 1-4): the gyro integrated between scans, the encoders
+    differenced, both fed to the heading filter once per scan period."""
+
+    def __init__(self, robot: DiffDriveRobot, gyro: GyroErrorModel, dt: float) -> None:
+        self.robot, self.gyro = robot, gyro
+        start = robot.pose
+        self.bias = _boot_bias(gyro, dt)
+        self.filt = HeadingFilter(
+            HeadingParams(gyro_arw_rad_per_sqrt_s=gyro.noise_density_radps_rthz), initial=start
+        )
+        self.enc_prev = robot.encoder_m()
+        self.gyro_acc = 0.0
+
+    def integrate_gyro(self, dt: float) -> None:
+        self.gyro_acc += (self.gyro.sample(self.robot.yaw_rate_radps, dt) - self.bias) * dt
+
+    def estimate(self, stamp_ns: int, period_s: float) -> HeadingEstimate:
+        """Step the filter by the encoders' and the gyro's change since the last scan."""
+        enc = self.robot.encoder_m()
+        dl, dr = enc[0] - self.enc_prev[0], enc[1] - self.enc_prev[1]
+        self.enc_prev = enc
+        base = self.robot.wheelbase_m
+        f = self.filt
+        f.step(0.5 * (dl + dr), (dr - dl) / base, self.gyro_acc, period_s)
+        self.gyro_acc = 0.0
+        return HeadingEstimate(stamp_ns, f.theta, f.variance, Pose2D(f.x, f.y, f.theta))
+
+
+class _IrBoard:
+    """The six IR sensors as the driver reports them: the fakes' error model, then the
+    driver's curve on a 3-sample median of the voltages."""
+
+    def __init__(self, seed: int) -> None:
+        self.ir = IrErrorModel()
+        self.curve: SharpCurve = self.ir.curve
+        self.rng = np.random.default_rng(seed + 200)
+        self.volts_hist: list[np.ndarray] = []
+        self.seq = 0
+
+    def read(self, world: World, stamp_ns: int) -> IrScan:
+        true_r = world.ranges("r1", MOUNTS, 12.0)
+        counts = self.ir.counts(true_r, self.rng)
+        self.volts_hist.append(self.ir.volts(counts))
+        self.volts_hist = self.volts_hist[-3:]
+        med = np.median(np.stack(self.volts_hist), axis=0)  # the driver's 3-sample median
+        rng_m, status = self.curve.range(med)
+        scan = IrScan(
+            stamp_ns=stamp_ns,
+            board_id=0,
+            seq=self.seq,
+            ranges_m=tuple(float(r) for r in rng_m),
+            status=tuple(STATUS_NAMES[int(s)] for s in status),  # type: ignore[misc]
+            voltages_v=tuple(float(v) for v in med),
+            raw_counts=tuple(int(c) for c in counts),
+        )
+        self.seq += 1
+        return scan
+
+
 def simulate(
     distance_m: float = 70.0,
     seed: int = 1,
@@ -108,80 +201,39 @@ def simulate(
     world = World.from_name(plan, seed=seed)
     slip = SlipModel(0.0, 0.0, 0.0) if perfect_odometry else SlipModel()
     robot = world.add_robot("r1", slip=slip)
-    gyro = GyroErrorModel(seed=seed + 100)
-    if perfect_odometry:
-        gyro = GyroErrorModel(0.0, 0.0, 0.0, 0.0, seed=seed + 100)
-    if gyro_scale_error is not None:
-        gyro.scale = 1.0 + gyro_scale_error
-    ir = IrErrorModel()
-    curve: SharpCurve = ir.curve
-    rng = np.random.default_rng(seed + 200)
-    start = robot.pose
-    # Stand still 3 s: the gyro's turn-on bias is calibrated, as a robot does at boot.
-    rates = [gyro.sample(0.0, dt) for _ in range(int(3.0 / dt))]
-    bias = float(np.mean(rates))
-    filt = HeadingFilter(
-        HeadingParams(gyro_arw_rad_per_sqrt_s=gyro.noise_density_radps_rthz), initial=start
-    )
-    base = robot.wheelbase_m
-    route = _route((start.x, start.y), distance_m)
+    gyro = _gyro(seed, gyro_scale_error, perfect_odometry)
+    board = _IrBoard(seed)
+    heading = _HeadingInput(robot, gyro, dt)
+    route = _route((robot.pose.x, robot.pose.y), distance_m)
     wp = 0
-    volts_hist: list[np.ndarray] = []
     steps: list[Step] = []
-    enc_prev = robot.encoder_m()
-    gyro_acc = 0.0
     t_since_scan = 0.0
     stamp = 0
-    seq = 0
     n_steps_max = int(4 * distance_m / speed_mps / dt) + 1000
     for _ in range(n_steps_max):
         if wp >= len(route) or robot.distance_m >= distance_m:
             break
-        # Operator: follow the waypoints on the true pose.
-        tx, ty = route[wp]
-        p = robot.pose
-        dx, dy = tx - p.x, ty - p.y
-        if math.hypot(dx, dy) < 0.1:
+        if not _steer(robot, route[wp], speed_mps):
             wp += 1
             continue
-        err = wrap_angle(math.atan2(dy, dx) - p.theta)
-        w = max(-0.6, min(0.6, 2.0 * err))
-        v = 0.0 if abs(err) > 20 * DEG else speed_mps * max(0.3, math.cos(err))
-        robot.command_wheels(v - 0.5 * w * base, v + 0.5 * w * base)
         world.step(dt)
         stamp += int(dt * 1e9)
-        gyro_acc += (gyro.sample(robot.yaw_rate_radps, dt) - bias) * dt
+        heading.integrate_gyro(dt)
         t_since_scan += dt
         if t_since_scan + 1e-9 < scan_period_s:
             continue
         t_since_scan = 0.0
-        enc = robot.encoder_m()
-        dl, dr = enc[0] - enc_prev[0], enc[1] - enc_prev[1]
-        enc_prev = enc
-        filt.step(0.5 * (dl + dr), (dr - dl) / base, gyro_acc, scan_period_s)
-        gyro_acc = 0.0
-        true_r = world.ranges("r1", MOUNTS, 12.0)
-        counts = ir.counts(true_r, rng)
-        volts_hist.append(ir.volts(counts))
-        volts_hist = volts_hist[-3:]
-        med = np.median(np.stack(volts_hist), axis=0)  # the driver's 3-sample median
-        rng_m, status = curve.range(med)
-        scan = IrScan(
-            stamp_ns=stamp,
-            board_id=0,
-            seq=seq,
-            ranges_m=tuple(float(r) for r in rng_m),
-            status=tuple(STATUS_NAMES[int(s)] for s in status),  # type: ignore[misc]
-            voltages_v=tuple(float(v) for v in med),
-            raw_counts=tuple(int(c) for c in counts),
-        )
-        seq += 1
-        est = Pose2D(filt.x, filt.y, filt.theta)
-        steps.append(Step(robot.pose, HeadingEstimate(stamp, filt.theta, filt.variance, est), scan))
+        est = heading.estimate(stamp, scan_period_s)
+        steps.append(Step(robot.pose, est, board.read(world, stamp)))
+    return _run(steps, robot.distance_m, gyro, heading.bias)
+
+
+def _run(steps: list[Step], distance_m: float, gyro: GyroErrorModel, bias: float) -> Run:
+    """The run with its final heading and position errors (estimate against truth)."""
     last = steps[-1]
     return Run(
         steps=steps,
-        distance_m=robot.distance_m,
+        distance_m=distance_m,
         final_heading_error_deg=math.degrees(wrap_angle(last.heading.theta_rad - last.truth.theta)),
         final_position_error_m=math.hypot(
             last.heading.pose.x - last.truth.x, last.heading.pose.y - last.truth.y
