@@ -316,6 +316,29 @@ class AlignedInput:
     def _advanced(self, a: Advance | None) -> Any:
         raise NotImplementedError
 
+    @property
+    def gyro_bias_radps(self) -> float:
+        """The gyro bias learnt while the robot stood still."""
+        return self._align.bias.bias_radps
+
+    @property
+    def gyro_stale(self) -> bool:
+        return self._align.gyro_stale
+
+    def feed(self, msg: object) -> Any:
+        """RobotOdometry or GyroSample -> the new estimate if a step ran (a gyro sample: only
+        if it released held odometry), else None; other messages go to ``_feed_other``."""
+        if isinstance(msg, RobotOdometry):
+            return self.feed_odometry(msg)
+        if isinstance(msg, GyroSample):
+            return self.feed_gyro(msg)
+        return self._feed_other(msg)
+
+    def _feed_other(self, msg: object) -> Any:
+        raise TypeError(
+            f"{type(self).__name__} is fed RobotOdometry or GyroSample, not {type(msg)}"
+        )
+
     def feed_gyro(self, msg: GyroSample) -> Any:
         """Take a gyro sample; an estimate only if it released held odometry (``arrival``)."""
         a = self._align.feed_gyro(msg, self)  # type: ignore[arg-type]

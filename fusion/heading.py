@@ -65,7 +65,7 @@ from scipy.stats import chi2
 from fusion.alignment import Advance, AlignedInput, Deferred, GyroOdometryAlignment
 from fusion.arrival import ArrivalOrder
 from fusion.increments import OdometryStep
-from msgs import GyroSample, HeadingEstimate, Pose2D, RobotOdometry, wrap_angle
+from msgs import HeadingEstimate, Pose2D, wrap_angle
 
 DEG = math.pi / 180.0
 
@@ -146,14 +146,6 @@ class HeadingFilter(AlignedInput):
         self.variance = float(s0 * s0 if variance_rad2 is None else variance_rad2)
         self.stamp_ns = int(stamp_ns)
         self._align.reset()
-
-    @property
-    def gyro_bias_radps(self) -> float:
-        return self._align.bias.bias_radps
-
-    @property
-    def gyro_stale(self) -> bool:
-        return self._align.gyro_stale
 
     def estimate(self) -> HeadingEstimate:
         return HeadingEstimate(
@@ -249,15 +241,6 @@ class HeadingFilter(AlignedInput):
         self.variance += self.gyro_variance(dtheta_gyro, covered_s)
 
     # -- message-level ---------------------------------------------------------------
-    def feed(self, msg: object) -> HeadingEstimate | None:
-        """RobotOdometry or GyroSample -> the new estimate if an odometry step ran (or a
-        baseline was set), else None; anything else: TypeError."""
-        if isinstance(msg, RobotOdometry):
-            return self.feed_odometry(msg)
-        if isinstance(msg, GyroSample):
-            return self.feed_gyro(msg)
-        raise TypeError(f"HeadingFilter is fed RobotOdometry or GyroSample, not {type(msg)}")
-
     def _advanced(self, a: Advance | None) -> HeadingEstimate | None:
         if a is None:
             return None

@@ -54,7 +54,7 @@ from fusion.arrival import ArrivalOrder
 from fusion.ekf_update import UpdateResult
 from fusion.pose_ekf_core import PoseEkfCore
 from fusion.pose_ekf_params import DEG, PoseEkfParams, gps_fix_measurement
-from msgs import GpsFix, GyroSample, Pose2D, PoseEstimate, RobotOdometry
+from msgs import GpsFix, Pose2D, PoseEstimate
 
 NS = 1e-9
 __all__ = ["DEG", "PoseEkf", "PoseEkfParams", "UpdateResult"]
@@ -89,22 +89,9 @@ class PoseEkf(AlignedInput, PoseEkfCore):
         self._last_gps_used_ns = None
         self._speed_mps = 0.0
 
-    @property
-    def gyro_bias_radps(self) -> float:
-        return self._align.bias.bias_radps
-
-    @property
-    def gyro_stale(self) -> bool:
-        return self._align.gyro_stale
-
     # -- message-level ---------------------------------------------------------------
-    def feed(self, msg: object) -> PoseEstimate | None:
-        """RobotOdometry / GpsFix -> the estimate (None if nothing changed); GyroSample ->
-        the estimate only if it released held odometry (``arrival``), else None."""
-        if isinstance(msg, RobotOdometry):
-            return self.feed_odometry(msg)
-        if isinstance(msg, GyroSample):
-            return self.feed_gyro(msg)
+    def _feed_other(self, msg: object) -> PoseEstimate | None:
+        """A GpsFix -> the estimate (None if nothing changed); anything else: TypeError."""
         if isinstance(msg, GpsFix):
             return self.feed_gps(msg)
         raise TypeError(f"PoseEkf is fed RobotOdometry, GyroSample or GpsFix, not {type(msg)}")

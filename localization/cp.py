@@ -38,6 +38,7 @@ Array-level API (benches, tests): ``start(stamp, x, y, th)``, ``step(stamp, dsr,
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -66,6 +67,14 @@ def _interval(lo: float, hi: float) -> Interval:
 class CPLocalizer(SlidingWindowCP):
     """Sliding-window interval constraint propagation for one robot, fed messages (see
     the module doc; the array-level API is :class:`localization.cp_window.SlidingWindowCP`)."""
+
+    FEEDS: ClassVar[dict[type, str]] = {
+        RobotOdometry: "feed_odometry",
+        GyroSample: "feed_gyro",
+        GpsFix: "feed_gps",
+        PoseBox: "feed_peer_box",
+        RelativeMeasurement: "feed_relative",
+    }
 
     def __init__(
         self, config: CPConfig | None = None, robot: str = "", initial: PoseBox | None = None
@@ -143,14 +152,11 @@ class CPLocalizer(SlidingWindowCP):
         return self.box()
 
     def feed_gps(self, fix: GpsFix) -> PoseBox | None:
-        if fix.east_m is None or fix.north_m is None or fix.mode < self.cfg.min_gps_mode:
-            self._skip("gps_no_fix")
-            return None
-        if not (math.isfinite(fix.east_m) and math.isfinite(fix.north_m)):
-            self._skip("gps_invalid")
+        en = self._gps_position(fix, self.cfg.min_gps_mode)
+        if en is None:
             return None
         self._ensure_started(fix.stamp_ns)
-        self.gps(fix.stamp_ns, fix.east_m, fix.north_m)
+        self.gps(fix.stamp_ns, *en)
         return self.box()
 
     def feed_peer_box(self, box: PoseBox) -> None:
@@ -203,19 +209,3 @@ class CPLocalizer(SlidingWindowCP):
         beta = beta.inflate(c.yaw_rate_bound_radps * dt_own)
         ok = self.relative(now, px, py, rho, beta)
         return self.box() if ok else None
-
-    def feed(self, msg) -> PoseBox | None:
-        """Dispatch a message by type (others are ignored and counted)."""
-        if isinstance(msg, RobotOdometry):
-            return self.feed_odometry(msg)
-        if isinstance(msg, GyroSample):
-            return self.feed_gyro(msg)
-        if isinstance(msg, GpsFix):
-            return self.feed_gps(msg)
-        if isinstance(msg, PoseBox):
-            self.feed_peer_box(msg)
-            return None
-        if isinstance(msg, RelativeMeasurement):
-            return self.feed_relative(msg)
-        self._skip("unhandled_" + type(msg).__name__)
-        return None

@@ -24,6 +24,7 @@ import numpy as np
 from localization.contractors import contract_range_bearing, fixpoint, odometry_displacement
 from localization.cp_config import CPConfig
 from localization.cp_solve import WindowArrays, solve_window
+from localization.intake import MessageIntake
 from localization.interval import IV, align_angle, meet_angle
 
 _WHOLE = (-math.inf, math.inf)
@@ -83,7 +84,7 @@ class SlidingWindow:
         return WindowArrays(hx, hy, hth, dsr, dsl, has, gx, gy)
 
 
-class SlidingWindowCP:
+class SlidingWindowCP(MessageIntake):
     """Array-level sliding-window constraint propagation for one robot (module doc)."""
 
     def __init__(self, config: CPConfig | None = None) -> None:
@@ -209,9 +210,6 @@ class SlidingWindowCP:
         self.position_box(xi, yi)
         self._hard(self._w.hth, thi, angle=True)
         return True
-
-    def _skip(self, why: str) -> None:
-        self.skipped[why] = self.skipped.get(why, 0) + 1
 
     def _latest(self) -> tuple[IV, IV, IV]:
         """The latest box without a window solve when possible: the last solution (or

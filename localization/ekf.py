@@ -24,9 +24,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
+from localization.intake import MessageIntake
 from localization.odometry import motion, motion_jacobians, wheels_from_poses
 from msgs import (
     GpsFix,
@@ -58,8 +60,14 @@ class EkfConfig:
     min_gps_mode: int = 2
 
 
-class EkfLocalizer:
+class EkfLocalizer(MessageIntake):
     """Extended Kalman filter on (x, y, theta); see the module docstring."""
+
+    FEEDS: ClassVar[dict[type, str]] = {
+        RobotOdometry: "feed_odometry",
+        GyroSample: "feed_gyro",
+        GpsFix: "feed_gps",
+    }
 
     def __init__(
         self,
@@ -133,9 +141,6 @@ class EkfLocalizer:
             theta=Interval(float(lo[2] - k), float(hi[2] - k)),
         )
 
-    def _skip(self, why: str) -> None:
-        self.skipped[why] = self.skipped.get(why, 0) + 1
-
     def feed_odometry(self, odom: RobotOdometry) -> PoseEstimate | None:
         prev, self._last_odom = self._last_odom, odom
         if prev is None:
@@ -163,25 +168,12 @@ class EkfLocalizer:
         return self.estimate()
 
     def feed_gps(self, fix: GpsFix) -> PoseEstimate | None:
-        if fix.east_m is None or fix.north_m is None or fix.mode < self.cfg.min_gps_mode:
-            self._skip("gps_no_fix")
+        en = self._gps_position(fix, self.cfg.min_gps_mode)
+        if en is None:
             return None
-        if not (math.isfinite(fix.east_m) and math.isfinite(fix.north_m)):
-            self._skip("gps_invalid")
-            return None
-        self.update_gps(fix.east_m, fix.north_m)
+        self.update_gps(*en)
         self.stamp_ns = max(self.stamp_ns, fix.stamp_ns)
         return self.estimate()
-
-    def feed(self, msg) -> PoseEstimate | None:
-        if isinstance(msg, RobotOdometry):
-            return self.feed_odometry(msg)
-        if isinstance(msg, GyroSample):
-            return self.feed_gyro(msg)
-        if isinstance(msg, GpsFix):
-            return self.feed_gps(msg)
-        self._skip("unhandled_" + type(msg).__name__)
-        return None
 
 
 @dataclass(frozen=True)
