@@ -1,7 +1,10 @@
-"""Byte links to devices, opened by URL: a serial device, ``tcp://host:port``, or a file.
+"""Byte links to devices, opened by URL the pyserial way, or a file of recorded bytes.
 
 - a path to a character device (``/dev/ttyUSB0``, a pty): pyserial, 8N1, given baud;
-- ``tcp://host:port``: a TCP client (MobileSim/AMRISim serve ARCOS on port 8101);
+- any pyserial URL (``serial.serial_for_url``): ``socket://host:port`` (MobileSim and
+  AMRISim serve ARCOS on port 8101; ``tcp://host:port`` is taken as the same),
+  ``rfc2217://host:port`` (a serial port shared over the network), ``spy://PORT`` (log
+  the traffic), ``hwgrep://VID:PID`` (find a USB adapter by its IDs), ``loop://``;
 - a path to a regular file of recorded bytes: read as fast as possible, then EOF.
 
 Every transport has ``read(max_bytes, timeout_s) -> bytes`` (empty on timeout),
@@ -49,15 +52,26 @@ class Transport:
 
 
 class SerialTransport(Transport):
-    def __init__(self, path: str, baud: int) -> None:
-        self.url = path
+    """A port opened with pyserial's ``serial_for_url``: a device path (read with select
+    on its file descriptor, in blocks), or any pyserial URL (``socket://``, ``rfc2217://``,
+    ``spy://``, ``hwgrep://``, ``loop://``: read through pyserial, so a ``spy://`` port
+    logs what passes)."""
+
+    def __init__(self, url: str, baud: int, shown: str | None = None) -> None:
+        self.url = shown or url  # what the user wrote (tcp:// for socket://)
+        self._fast = "://" not in url  # a device path: select + os.read on its fd
         try:
-            self._port = serial.Serial(path, baudrate=baud, timeout=0, write_timeout=2.0)
-        except serial.SerialException as exc:
-            raise _open_error(path, exc) from None
+            self._port = serial.serial_for_url(url, baudrate=baud, timeout=0, write_timeout=2.0)
+        except (serial.SerialException, ValueError, OSError) as exc:
+            raise _open_error(self.url, exc) from None
+        sock = getattr(self._port, "_socket", None)
+        if isinstance(sock, socket.socket):  # socket://, rfc2217://: no Nagle delay
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
     def read(self, max_bytes: int, timeout_s: float) -> bytes:
         try:
+            if not self._fast:
+                return self._read_url(max_bytes, timeout_s)
             fd = self._port.fileno()
             ready, _, _ = select.select([fd], [], [], max(0.0, timeout_s))
             if not ready:
@@ -70,6 +84,15 @@ class SerialTransport(Transport):
             raise LinkLost(f"{self.url}: device closed")
         return data
 
+    def _read_url(self, max_bytes: int, timeout_s: float) -> bytes:
+        """One byte with the timeout, then whatever else is there at once."""
+        self._port.timeout = max(0.0, timeout_s)
+        first = self._port.read(1)
+        if not first:
+            return b""
+        self._port.timeout = 0
+        return first + self._port.read(max_bytes - 1)
+
     def write(self, data: bytes) -> None:
         try:
             self._port.write(data)
@@ -80,43 +103,6 @@ class SerialTransport(Transport):
         try:
             self._port.close()
         except (OSError, serial.SerialException):
-            pass
-
-
-class TcpTransport(Transport):
-    def __init__(self, host: str, port: int, connect_timeout_s: float = 3.0) -> None:
-        self.url = f"tcp://{host}:{port}"
-        try:
-            self._sock = socket.create_connection((host, port), timeout=connect_timeout_s)
-        except OSError as exc:
-            raise DeviceError(
-                f"{self.url}: cannot connect ({exc.strerror or exc}); is the simulator or "
-                "serial-to-TCP bridge running and listening on that port?"
-            ) from None
-        self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-
-    def read(self, max_bytes: int, timeout_s: float) -> bytes:
-        try:
-            ready, _, _ = select.select([self._sock], [], [], max(0.0, timeout_s))
-            if not ready:
-                return b""
-            data = self._sock.recv(max_bytes)
-        except OSError as exc:
-            raise LinkLost(f"{self.url}: {exc}") from None
-        if not data:
-            raise LinkLost(f"{self.url}: peer closed the connection")
-        return data
-
-    def write(self, data: bytes) -> None:
-        try:
-            self._sock.sendall(data)
-        except OSError as exc:
-            raise LinkLost(f"{self.url}: {exc}") from None
-
-    def close(self) -> None:
-        try:
-            self._sock.close()
-        except OSError:
             pass
 
 
@@ -146,6 +132,8 @@ class FileTransport(Transport):
 def _open_error(path: str, exc: Exception) -> DeviceError:
     err = getattr(exc, "errno", None)
     text = str(exc)
+    if "://" in path and not path.startswith("file://"):
+        return _url_error(path, text)
     if (
         err == errno.ENOENT
         or "No such file" in text
@@ -168,13 +156,30 @@ def _open_error(path: str, exc: Exception) -> DeviceError:
     return DeviceError(f"{path}: cannot open: {text}")
 
 
+def _url_error(url: str, text: str) -> DeviceError:
+    if url.startswith("hwgrep://"):
+        return DeviceError(
+            f"{url}: no serial port matches; list the ports with `hilnav probe --list`"
+        )
+    if url.startswith(("socket://", "rfc2217://", "tcp://")):
+        why = text.split("] ", 1)[-1] if "] " in text else text
+        return DeviceError(
+            f"{url}: cannot connect ({why}); is the simulator or serial-to-TCP bridge "
+            "running and listening on that port?"
+        )
+    return DeviceError(f"{url}: cannot open: {text}")
+
+
 def open_transport(url: str, baud: int = 9600) -> Transport:
     """Open a device link by URL (see the module docstring)."""
-    if url.startswith("tcp://"):
+    shown = url
+    if url.startswith("tcp://"):  # the simulators' habit: the same as pyserial's socket://
         host, _, port = url[len("tcp://") :].rpartition(":")
         if not host or not port.isdigit():
             raise DeviceError(f"{url}: expected tcp://HOST:PORT, e.g. tcp://127.0.0.1:8101")
-        return TcpTransport(host, int(port))
+        url = f"socket://{host}:{port}"
+    if "://" in url and not url.startswith("file://"):
+        return SerialTransport(url, baud, shown)
     path = url[len("file://") :] if url.startswith("file://") else url
     try:
         mode = os.stat(path).st_mode

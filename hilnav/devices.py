@@ -15,7 +15,8 @@ Like python-can's interface registry, a device is one :class:`Device` entry in
 - ``emulator(cfg, knobs)``: the emulated twin ``hilnav fake`` serves (knobs: the fault
   and test settings that are not part of a robot's config, :class:`FakeKnobs`);
 
-and ``attach(section, ports)``, which points a "sim" port at the port the fake printed.
+and ``attach(section, ports)``, which points a "sim" port at the port the fake printed;
+``usb_ids``/``usb_words`` let ``hilnav probe --list`` guess which device a USB port is.
 Adding a fifth device is one entry here plus its config section.
 """
 
@@ -55,6 +56,8 @@ class Device:
     codec: Callable[[RobotConfig], Any]
     emulator: Callable[[RobotConfig, FakeKnobs], Any]
     attach: Callable[[Any, dict[str, str]], Any]
+    usb_ids: tuple[str, ...] = ()  # "VID:PID" of adapters that are this device
+    usb_words: tuple[str, ...] = ()  # words of a USB description that name it
 
     def section(self, cfg: RobotConfig) -> Any:
         return getattr(cfg.devices, self.name)
@@ -192,11 +195,16 @@ _TABLE = (
     Device("arcos", "Pioneer 3-DX base (ARCOS)", (RobotOdometry, RobotInfo),
            _arcos_driver, _arcos_codec, _arcos_emulator, _port("arcos")),
     Device("ir", "Sharp GP2Y0A710K IR sensors behind an ADC board (serial or CAN)", (IrScan,),
-           _ir_driver, _ir_codec, _ir_emulator, _ir_attach),
+           _ir_driver, _ir_codec, _ir_emulator, _ir_attach,
+           # slcan adapters for the board on CAN: CANable (slcan firmware), Lawicel CANUSB
+           usb_ids=("16d0:117e", "0403:ffa8"), usb_words=("canable", "slcan", "can adapter")),
     Device("gyro", "CruzCore gyro", (GyroSample,),
            _gyro_driver, _gyro_codec, _gyro_emulator, _port("gyro")),
     Device("gps", "NMEA GPS receiver", (GpsFix,),
-           _gps_driver, _gps_codec, _gps_emulator, _port("gps")),
+           _gps_driver, _gps_codec, _gps_emulator, _port("gps"),
+           # u-blox receivers (5 to 9), and words receivers put in their USB description
+           usb_ids=("1546:01a5", "1546:01a6", "1546:01a7", "1546:01a8", "1546:01a9"),
+           usb_words=("gps", "gnss", "u-blox")),
 )  # fmt: skip
 
 DEVICES: dict[str, Device] = {d.name: d for d in _TABLE}
@@ -230,3 +238,20 @@ def with_fake_ports(cfg: RobotConfig, ports: dict[str, str]) -> RobotConfig:
         if sec.port == "sim":
             changes[d.name] = d.attach(sec, ports)
     return dataclasses.replace(cfg, devices=dataclasses.replace(cfg.devices, **changes))
+
+
+# USB-serial bridges any of the serial devices may sit behind (FTDI, Prolific, CP210x, CH340).
+USB_SERIAL_IDS = ("0403:6001", "0403:6015", "067b:2303", "10c4:ea60", "1a86:7523")
+
+
+def guess_device(vid: int | None, pid: int | None, description: str = "") -> str:
+    """Which device a USB port probably is, from its IDs and description ("" if unknown)."""
+    usb = f"{vid:04x}:{pid:04x}" if vid is not None and pid is not None else ""
+    text = description.lower()
+    for d in _TABLE:
+        if usb in d.usb_ids or any(w in text for w in d.usb_words):
+            return d.name
+    if usb in USB_SERIAL_IDS:
+        serial_ones = ", ".join(n for n in DEVICES if n != "ir")
+        return f"a USB-serial adapter ({serial_ones} or ir on serial)"
+    return ""

@@ -5,12 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import signal
+import sys
 import time
+from typing import Any
 
 from drivers.base import DeviceError
 from hilnav.commands.probe_sensors import no_messages, probe_config, register_sensors
-from hilnav.devices import DEVICES
+from hilnav.devices import DEVICES, guess_device
 from hilnav.errors import CliError
 from msgs import RobotInfo, RobotOdometry, to_dict
 
@@ -19,9 +22,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "probe",
         help="connect a driver to a port and print its messages as JSON lines",
-        description="PORT may be a device path, tcp://HOST:PORT or a file of recorded bytes.",
+        description="PORT is a device path, a pyserial URL (socket://HOST:PORT, tcp://HOST:PORT, "
+        "rfc2217://HOST:PORT, spy:///dev/ttyUSB0, hwgrep://VID:PID) or a file of recorded "
+        "bytes; for an IR board on CAN it is INTERFACE:CHANNEL (slcan:/dev/ttyACM0, "
+        "socketcan:can0, virtual:NAME). `hilnav probe --list` lists the serial ports.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    dev = p.add_subparsers(dest="device", metavar="DEVICE", required=True)
+    p.add_argument(
+        "--list",
+        action="store_true",
+        help="list the serial ports (device, VID:PID, description, /dev/serial/by-id links) "
+        "and guess which device each is",
+    )
+    p.set_defaults(func=list_ports)
+    dev = p.add_subparsers(dest="device", metavar="DEVICE")
     a = dev.add_parser("arcos", help="a Pioneer (ARCOS): robot info, then one object per SIP")
     a.add_argument("port")
     a.add_argument("--baud", type=int, default=9600)
@@ -29,6 +43,43 @@ def register(sub: argparse._SubParsersAction) -> None:
     a.add_argument("--seconds", type=float, default=5.0, help="how long to probe (default 5)")
     a.set_defaults(func=probe_arcos)
     register_sensors(dev)
+
+
+def list_ports(args: argparse.Namespace) -> int:
+    """``hilnav probe --list``: one line per serial port, with a guess of its device."""
+    if not args.list:
+        raise CliError("give a DEVICE and its PORT (hilnav probe arcos /dev/ttyUSB0), or --list")
+    from serial.tools import list_ports as lp
+
+    by_id = _by_id_links()
+    ports = sorted(lp.comports(), key=lambda p: p.device)
+    for p in ports:
+        print(json.dumps(port_row(p, by_id)), flush=True)
+    if not ports:
+        print("no serial ports found", file=sys.stderr)
+    return 0
+
+
+def _by_id_links(folder: str = "/dev/serial/by-id") -> dict[str, list[str]]:
+    out: dict[str, list[str]] = {}
+    if os.path.isdir(folder):
+        for name in sorted(os.listdir(folder)):
+            link = os.path.join(folder, name)
+            out.setdefault(os.path.realpath(link), []).append(link)
+    return out
+
+
+def port_row(p: Any, by_id: dict[str, list[str]]) -> dict[str, Any]:
+    """What ``--list`` prints for one ``serial.tools.list_ports`` entry."""
+    usb = f"{p.vid:04x}:{p.pid:04x}" if p.vid is not None and p.pid is not None else None
+    return {
+        "port": p.device,
+        "usb": usb,
+        "description": p.description,
+        "serial_number": p.serial_number,
+        "by_id": by_id.get(os.path.realpath(p.device), []),
+        "guess": guess_device(p.vid, p.pid, f"{p.description} {p.manufacturer or ''}"),
+    }
 
 
 def _parse_drive(text: str | None) -> tuple[float, float] | None:
