@@ -101,7 +101,7 @@ def _ir_driver(cfg: RobotConfig, on_raw: RawHook, **extra: Any) -> Any:
     board = ir_board_config(cfg)
     if ir.link == "can":
         chan = ir.can_channel or ir.port
-        kw = {"bitrate": ir.can_bitrate, "on_raw": on_raw, **extra}
+        kw = {"bitrate": ir.can_bitrate, "on_raw": on_raw, "bus_kwargs": ir.can, **extra}
         return IrCanDriver(ir.can_interface, chan, board, **kw)
     return IrSerialDriver(ir.port, board, **{"baud": ir.baud, "on_raw": on_raw, **extra})
 

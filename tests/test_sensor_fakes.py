@@ -204,6 +204,31 @@ def test_ir_can_driver_on_a_python_can_virtual_bus():
         runner.stop()
 
 
+def test_ir_can_the_python_can_way_config_table_and_its_own_environment(monkeypatch):
+    """[devices.ir.can] reaches can.Bus(...); an empty interface lets python-can's own
+    configuration (here its environment variables) choose the bus."""
+    from hilnav.config import parse_config
+    from hilnav.devices import DEVICES
+
+    channel = f"hilnav-test-{next(_can_channels)}"
+    runner, ir = _can_rig("python-can", channel)
+    monkeypatch.setenv("CAN_INTERFACE", "virtual")
+    monkeypatch.setenv("CAN_CHANNEL", channel)
+    try:
+        data = {"devices": {"ir": {"link": "can", "port": "", "can_interface": "",
+                                   "board_id": 4, "can": {"receive_own_messages": True}}}}  # fmt: skip
+        d = DEVICES["ir"].driver(parse_config(data, "<test>"), None)
+        d.open()
+        try:
+            assert d.bus.receive_own_messages is True  # the table's argument got through
+            assert d.bus.channel_info.startswith("Virtual bus channel")
+            assert len(_collect(d, 0.6)) >= 5
+        finally:
+            d.close()
+    finally:
+        runner.stop()
+
+
 def test_slcan_adapter_protocol():
     from fakes.slcan import SlcanAdapter
 

@@ -84,13 +84,15 @@ class IrCanDriver(LinkDiagnostics):
         if self.interface == "slcan":
             kw.setdefault("sleep_after_open", 0.1)
             kw.setdefault("bitrate", self.bitrate)
-        elif self.interface not in ("virtual",):
+        elif self.interface not in ("virtual", ""):
             kw.setdefault("bitrate", self.bitrate)
         can_filters = [{"can_id": SAMPLE_ID_BASE + self.config.board_id, "can_mask": 0x7FF}]
+        if self.interface:  # else python-can's own config file / environment decide
+            kw["interface"] = self.interface
+        if self.channel:
+            kw["channel"] = self.channel
         try:
-            self.bus = can.Bus(
-                interface=self.interface, channel=self.channel, can_filters=can_filters, **kw
-            )
+            self.bus = can.Bus(can_filters=can_filters, **kw)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
             raise DeviceError(
                 f"CAN {self.interface}:{self.channel}: cannot open ({exc}); check the "

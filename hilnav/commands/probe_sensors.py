@@ -21,8 +21,6 @@ from hilnav.devices import DEVICES
 from hilnav.errors import CliError
 from msgs import GpsFix, GyroSample, IrScan, to_dict
 
-CAN_INTERFACES = ("slcan", "socketcan", "virtual", "pcan", "kvaser", "vector", "gs_usb", "ixxat")
-
 
 def register_sensors(dev: argparse._SubParsersAction) -> None:
     """Add ``ir``, ``gyro`` and ``gps`` under ``hilnav probe``."""
@@ -147,7 +145,7 @@ def probe_ir(args: argparse.Namespace) -> int:
         "link": "serial",
     }
     iface, sep, channel = args.port.partition(":")
-    if sep and iface in CAN_INTERFACES:
+    if sep and iface in can_interfaces():
         ir.update(link="can", can_interface=iface, can_channel=channel, port=channel)
     cfg = probe_config("ir", ir, geometry={"ir_mounts": mounts})
     return _loop(DEVICES["ir"].driver(cfg, None), args)
@@ -170,6 +168,13 @@ def probe_gps(args: argparse.Namespace) -> int:
     cfg = probe_config("gps", {"port": args.port, "baud": args.baud})
     extra = {"datum": datum, "require_checksum": not args.no_checksum_ok}
     return _loop(DEVICES["gps"].driver(cfg, None, **extra), args)
+
+
+def can_interfaces() -> frozenset[str]:
+    """python-can's interface names (its own registry, plugins included)."""
+    import can
+
+    return frozenset(can.interfaces.VALID_INTERFACES)
 
 
 def probe_config(device: str, section: dict[str, Any], **tables: Any) -> RobotConfig:

@@ -134,7 +134,8 @@ def _build(cls: type, data: dict[str, Any], path: str, src: str) -> Any:
 def _cross_checks(cfg: RobotConfig, src: str) -> None:
     d = cfg.devices
     for dev, dc in d.sections():
-        if dc.enabled and not dc.port and not (dev == "ir" and dc.link == "can" and dc.can_channel):
+        can_ok = dev == "ir" and dc.link == "can" and (dc.can_channel or not dc.can_interface)
+        if dc.enabled and not dc.port and not can_ok:
             raise ConfigError(
                 f"{src}: devices.{dev}.port = '': give the port (e.g. /dev/ttyUSB0, "
                 'tcp://127.0.0.1:8101) or "sim", or set devices.' + dev + ".enabled = false"

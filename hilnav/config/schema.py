@@ -70,7 +70,7 @@ class IrDevice:
     link: str = field(default="can", metadata=_choice("serial", "can"))
     port: str = "sim"  # serial link: the port; can link with slcan: the adapter's port
     baud: int = field(default=115200, metadata=_baud("115200"))
-    can_interface: str = "slcan"  # python-can interface: slcan, socketcan, virtual, ...
+    can_interface: str = "slcan"  # python-can interface; "": python-can's own config/env
     can_channel: str = ""  # empty: the port (slcan); e.g. can0 for socketcan
     can_bitrate: int = field(
         default=500_000,
@@ -81,6 +81,7 @@ class IrDevice:
     adc_bits: int = field(default=10, metadata=_choice(10, 12))
     vref_v: float = field(default=5.0, metadata=_positive("5.0"))
     median_window: int = field(default=3, metadata=_check(lambda v: 1 <= v <= 15, "1..15"))
+    can: dict[str, Any] = field(default_factory=dict)  # more can.Bus(...) arguments
 
 
 @dataclass(frozen=True)
