@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 
-from conftest import HILNAV, ROOT, hilnav_env
+from conftest import HILNAV, hilnav_env
 
 from hilnav.log.reader import read_messages
 from msgs import PoseBox
@@ -15,9 +15,10 @@ from msgs import PoseBox
 def test_three_robot_fleet_contains_truth_and_drops_a_killed_robot(tmp_path):
     out = tmp_path / "logs"
     cmd = [*HILNAV, "fleet", "--robots", "3", "--scenario", "paper", "--duration", "3", "--rate", "2",
-           "--kill", "r3@0.8", "--out", str(out)]  # fmt: skip
+           "--kill", "r3@0.8", "--out", "logs"]  # fmt: skip
+    # run from another directory than the checkout, with a relative --out
     proc = subprocess.run(
-        cmd, capture_output=True, text=True, timeout=120, env=hilnav_env(), cwd=ROOT
+        cmd, capture_output=True, text=True, timeout=120, env=hilnav_env(), cwd=tmp_path
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.strip().splitlines()

@@ -111,7 +111,7 @@ def test_cli_writes_plots_and_summary(synth: tuple[Path, dict], tmp_path: Path) 
     path, exp = synth
     out = tmp_path / "report"
     proc = subprocess.run(
-        [*HILNAV, "analyze", str(path), "--out", str(out)],
+        [*HILNAV, "analyze", str(path), "--out", str(out), "--json"],
         capture_output=True,
         text=True,
         env=hilnav_env(),
@@ -129,6 +129,11 @@ def test_cli_writes_plots_and_summary(synth: tuple[Path, dict], tmp_path: Path) 
     assert saved["robots"]["r1"]["map"]["match_ratio"] == pytest.approx(
         exp["match_ratio"], abs=1e-6
     )
+    # without --json: a digest a person reads, and where the summary is
+    human = subprocess.run([*HILNAV, "analyze", str(path), "--out", str(out), "--no-plots"],
+                           capture_output=True, text=True, env=hilnav_env(), timeout=120)  # fmt: skip
+    assert human.returncode == 0 and not human.stdout.lstrip().startswith("{")
+    assert "r1" in human.stdout and f"summary and plots: {out}/" in human.stdout
 
 
 def test_digest_has_the_figures_of_the_summary(synth: tuple[Path, dict]) -> None:

@@ -90,7 +90,9 @@ def test_replay_of_the_recovered_log_is_deterministic(killed_run) -> None:
     for dev in ("gyro", "ir", "gps"):
         assert raw["decoded_from_raw"][dev] == rep["fed"][dev], dev
     assert abs(raw["decoded_from_raw"]["odometry"] - rep["fed"]["odometry"]) <= 1
-    summary = _cli("analyze", str(outs["a"][0]), "--out", str(fixed.parent / "an"), "--no-plots")
+    summary = _cli(
+        "analyze", str(outs["a"][0]), "--out", str(fixed.parent / "an"), "--no-plots", "--json"
+    )
     r1 = summary["robots"]["r1"]
     assert r1["reference"] == "truth" and "pose" in r1["paths"]
     assert (

@@ -67,7 +67,7 @@ def test_import_first_seconds_matches_the_loader(vp_dir: Path, tmp_path: Path) -
 
     # analyze understands it: the GPS is the reference
     proc = subprocess.run(
-        [*HILNAV, "analyze", str(out), "--out", str(tmp_path / "a"), "--no-plots"],
+        [*HILNAV, "analyze", str(out), "--out", str(tmp_path / "a"), "--no-plots", "--json"],
         capture_output=True, text=True, env=hilnav_env(), cwd=ROOT, timeout=120,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
@@ -105,7 +105,8 @@ def test_replay_runs_ekf_slam_on_it_deterministically(vp_dir: Path, tmp_path: Pa
     assert rep["config"].startswith("landmark-slam") and rep["pipeline_errors"] == 0
     assert rep["outputs"]["pose"] == rep["fed"]["control"] + rep["fed"]["landmark_scan"]
     proc = subprocess.run(
-        [*HILNAV, "analyze", str(tmp_path / "a.mcap"), "--out", str(tmp_path / "an"), "--no-plots"],
+        [*HILNAV, "analyze", str(tmp_path / "a.mcap"), "--out", str(tmp_path / "an"), "--no-plots",
+         "--json"],
         capture_output=True, text=True, env=hilnav_env(), cwd=ROOT, timeout=120,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr

@@ -16,12 +16,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Compute what the log allows (path error against the truth or GPS, "
         "heading drift per metre, map match ratio against the floor plan named in the log, CP "
         "box containment and areas, diagnostics), write PNG plots and summary.json to DIR, "
-        "and print the JSON summary on the last line.",
+        "and print a digest (with --json: the JSON summary).",
     )
     p.add_argument("log", help="MCAP log (a truncated one is read up to its last record)")
     p.add_argument("--out", help="output directory (default: <log without .mcap>-analysis)")
     p.add_argument("--plan", help="floor plan for the map match ratio (default: from the log)")
     p.add_argument("--no-plots", action="store_true", help="only the JSON summary")
+    p.add_argument(
+        "--json", action="store_true", help="print the JSON summary instead of the digest"
+    )
     p.set_defaults(func=run)
 
 
@@ -31,7 +34,7 @@ def default_out(log: Path) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from hilnav.analysis.analyze import analyze
-    from hilnav.analysis.report import write_report
+    from hilnav.analysis.report import digest, write_report
 
     log = Path(args.log)
     if not log.is_file():
@@ -45,5 +48,10 @@ def run(args: argparse.Namespace) -> int:
         msg = str(exc)
         raise CliError(msg if msg.startswith(str(log)) else f"{log}: {msg}") from None
     summary = write_report(result, out, plots=not args.no_plots)
-    print(json.dumps(summary, sort_keys=True))
+    if args.json:
+        print(json.dumps(summary, sort_keys=True))
+        return 0
+    for line in digest(result):
+        print(line)
+    print(f"summary and plots: {out}/ (the JSON: hilnav analyze {log} --json)")
     return 0

@@ -23,7 +23,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     vp.add_argument("out", help="MCAP log to write")
     vp.add_argument("--robot", default="vp", help="robot name in the topics (default vp)")
     vp.add_argument("--duration", type=float, help="only the first S seconds")
-    vp.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
+    vp.add_argument(
+        "--compression",
+        default="zstd",
+        choices=("zstd", "lz4", "none"),
+        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
+    )
     vp.set_defaults(func=run_victoria_park)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 

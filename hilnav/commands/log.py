@@ -24,9 +24,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Copy every complete record of IN into a valid MCAP OUT and report what "
         "was lost (the torn tail). Prints a JSON report on its last line.",
     )
-    rec.add_argument("input", help="truncated MCAP log")
-    rec.add_argument("output", help="new MCAP log to write")
-    rec.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
+    rec.add_argument("input", metavar="IN", help="truncated MCAP log")
+    rec.add_argument("output", metavar="OUT", help="new MCAP log to write")
+    rec.add_argument(
+        "--compression",
+        default="zstd",
+        choices=("zstd", "lz4", "none"),
+        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
+    )
     rec.set_defaults(func=run_recover)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 

@@ -38,7 +38,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     dev = p.add_subparsers(dest="device", metavar="DEVICE")
     a = dev.add_parser("arcos", help="a Pioneer (ARCOS): robot info, then one object per SIP")
     a.add_argument("port")
-    a.add_argument("--baud", type=int, default=9600)
+    a.add_argument(
+        "--baud",
+        type=int,
+        default=9600,
+        help="serial speed (ignored for files and URLs that have none)",
+    )
     a.add_argument("--drive", metavar="V,W", help="drive at V m/s and W rad/s while probing")
     a.add_argument("--seconds", type=float, default=5.0, help="how long to probe (default 5)")
     a.set_defaults(func=probe_arcos)

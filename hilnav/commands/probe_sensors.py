@@ -30,7 +30,12 @@ def register_sensors(dev: argparse._SubParsersAction) -> None:
     common.add_argument("--count", type=int, default=None, help="stop after N messages")
 
     ir = dev.add_parser("ir", parents=[common], help="an IR ADC board: one object per scan")
-    ir.add_argument("--baud", type=int, default=115200)
+    ir.add_argument(
+        "--baud",
+        type=int,
+        default=115200,
+        help="serial speed (ignored for files and URLs that have none)",
+    )
     ir.add_argument("--board", type=int, default=1, help="board id (default 1)")
     ir.add_argument("--bits", type=int, default=10, choices=(10, 12), help="ADC resolution")
     ir.add_argument("--vref", type=float, default=5.0, help="ADC reference voltage")
@@ -41,16 +46,28 @@ def register_sensors(dev: argparse._SubParsersAction) -> None:
     ir.set_defaults(func=probe_ir)
 
     gy = dev.add_parser("gyro", parents=[common], help="a CruzCore gyro: one object per packet")
-    gy.add_argument("--baud", type=int, default=115200)
+    gy.add_argument(
+        "--baud",
+        type=int,
+        default=115200,
+        help="serial speed (ignored for files and URLs that have none)",
+    )
     gy.add_argument("--rate", type=int, default=None, help="packet rate to request (Hz)")
     gy.add_argument("--no-reset", action="store_true", help="do not re-zero the angle")
     gy.set_defaults(func=probe_gyro)
 
     gp = dev.add_parser("gps", parents=[common], help="an NMEA GPS: one object per fix")
-    gp.add_argument("--baud", type=int, default=9600)
+    gp.add_argument(
+        "--baud",
+        type=int,
+        default=9600,
+        help="serial speed (ignored for files and URLs that have none)",
+    )
     gp.add_argument("--datum", metavar="LAT,LON", help="origin of east/north (default first fix)")
     gp.add_argument(
-        "--no-checksum-ok", action="store_true", help="accept sentences without checksum"
+        "--no-checksum-ok",
+        action="store_true",
+        help="also accept sentences that carry no *hh checksum (some old receivers)",
     )
     gp.set_defaults(func=probe_gps)
 

@@ -33,7 +33,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="services to run: the daemon's (Pioneer sensors) or EKF-SLAM over controls and "
         "landmark scans (imported data sets); auto picks by the log's content",
     )
-    p.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
+    p.add_argument(
+        "--compression",
+        default="zstd",
+        choices=("zstd", "lz4", "none"),
+        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
