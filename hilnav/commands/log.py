@@ -33,6 +33,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
     )
     rec.set_defaults(func=run_recover)
+    can_ = lsub.add_parser(
+        "export-can",
+        help="the IR board's raw CAN frames as a python-can log (.asc, .blf, .csv, .trc ...)",
+        description="Write every raw CAN frame of the log (the IR board on CAN) to OUT in the "
+        "format its extension names, with python-can's own writer; can.player and "
+        "can.LogReader read it back.",
+    )
+    can_.add_argument("file", metavar="LOG", help="MCAP log")
+    can_.add_argument("out", metavar="OUT", help="e.g. frames.asc or frames.blf")
+    can_.set_defaults(func=run_export_can)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
@@ -70,4 +80,25 @@ def run_recover(args: argparse.Namespace) -> int:
         f"{rep.lost_bytes} tail bytes dropped, {rep.bad_chunks} bad chunks"
     )
     print(json.dumps(d, sort_keys=True))
+    return 0
+
+
+def run_export_can(args: argparse.Namespace) -> int:
+    from hilnav.log.can_export import export_can
+    from hilnav.log.reader import read_metadata
+    from hilnav.replay.resolve import resolve_config
+
+    src = _existing(args.file)
+    try:
+        meta = read_metadata(src).get("hilnav", {})
+        config, where = resolve_config(None, meta)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    if config.devices.ir.link != "can":
+        raise CliError(f"{src}: its IR board is on a serial link ({where}): no CAN frames")
+    try:
+        n = export_can(src, args.out)
+    except ValueError as exc:  # python-can: an extension it has no writer for
+        raise CliError(f"{args.out}: {exc}") from None
+    print(f"{n} CAN frames written to {args.out}")
     return 0
