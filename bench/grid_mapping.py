@@ -38,9 +38,10 @@ from drivers.sharp import STATUS_NAMES, SharpCurve  # noqa: E402
 from fakes.world import DiffDriveRobot, GyroErrorModel, IrErrorModel, SlipModel, World  # noqa: E402
 from fusion.heading import HeadingFilter, HeadingParams  # noqa: E402
 from mapping.association import AssociationConfig, SampleAssociation  # noqa: E402
-from mapping.export import write_map, write_png  # noqa: E402
+from mapping.export import write_png  # noqa: E402
 from mapping.grid import GridConfig, OccupancyGrid  # noqa: E402
 from mapping.ir_inverse import InverseModelConfig, IrInverseModel, beams_from_scan  # noqa: E402
+from mapping.mapfile import write_map  # noqa: E402
 from mapping.quality import compare, true_map  # noqa: E402
 from msgs import HeadingEstimate, IrScan, Pose2D, wrap_angle  # noqa: E402
 

@@ -3,14 +3,10 @@
 Input: dead reckoning at 40 Hz (encoder speed at the rear left wheel, steering) and the
 tree detections of each laser scan (range, bearing 0..pi with pi/2 ahead). GPS is used
 ONLY for evaluation: the estimated laser path (the laser is the GPS antenna's position,
-car.bmp) is sampled at the GPS times and compared with the GPS fixes after the best
-rigid 2-D alignment (Kabsch/Umeyama without scale).
-
-GPS outlier rule (independent of the estimate): the encoder says how far the car
-travelled between two fixes; two fixes cannot be farther apart than that path length
-plus a 1.5 m allowance. A fix is an outlier if it violates this bound with more than
-half of its neighbours within +-10 s (at least 4 neighbours needed; fixes with fewer
-neighbours, i.e. isolated in the receiver's gaps, are kept).
+car.bmp) is compared with the GPS fixes after the best rigid 2-D alignment, with the GPS
+outlier rule and the error defined once in ``hilnav.analysis.gps_error`` (which
+``hilnav analyze`` uses too): the latest pose at or before each kept fix, the RMS of the
+distances after the rigid fit.
 
 Vehicle geometry (a, b, H, L) is chosen by comparison with GPS: ``--geometry`` picks
 one of the variants below; ``--compare`` runs the dead reckoning alone AND the SLAM with
@@ -43,6 +39,12 @@ import numpy as np  # noqa: E402
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from hilnav.analysis.geometry import apply_fit, rigid_fit  # noqa: E402
+from hilnav.analysis.gps_error import (  # noqa: E402
+    errors_at_fixes,
+    gps_inliers,
+    travelled_from_speed,
+)
 from mapping.slam.models import AckermannGeometry  # noqa: E402
 from mapping.slam.service import LandmarkSlam, SlamConfig  # noqa: E402
 from mapping.slam.victoria_park import (  # noqa: E402
@@ -121,55 +123,29 @@ def run_slam(
     return times[order] * 1e-9, poses, slam
 
 
-def gps_inliers(data: VictoriaParkData, window_s: float = 10.0, slack_m: float = 1.5) -> np.ndarray:
-    """The documented outlier rule (module docstring): boolean mask of kept fixes."""
-    t, x, y = data.gps_time_s, data.gps_x_m, data.gps_y_m
-    dt = np.diff(data.dr_time_s, append=data.dr_time_s[-1])
-    travelled = np.concatenate([[0.0], np.cumsum(np.abs(data.speed_mps[:-1]) * dt[:-1])])
-    s = np.interp(t, data.dr_time_s, travelled)
-    keep = np.ones(len(t), dtype=bool)
-    lo = np.searchsorted(t, t - window_s)
-    hi = np.searchsorted(t, t + window_s, side="right")
-    for i in range(len(t)):
-        j = np.r_[lo[i] : i, i + 1 : hi[i]]
-        if len(j) < 4:
-            continue
-        dist = np.hypot(x[j] - x[i], y[j] - y[i])
-        bad = dist > np.abs(s[j] - s[i]) + slack_m
-        keep[i] = np.count_nonzero(bad) <= len(j) // 2
-    return keep
-
-
-def rigid_align(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation R (2x2) and translation t minimising sum |R src + t - dst|^2."""
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    h = (src - mu_s).T @ (dst - mu_d)
-    u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    r = vt.T @ np.diag([1.0, d]) @ u.T
-    return r, mu_d - r @ mu_s
+def gps_keep(data: VictoriaParkData) -> np.ndarray:
+    """The fixes kept by the GPS outlier rule (hilnav.analysis.gps_error), the distance
+    travelled being the encoder's."""
+    travel = travelled_from_speed(data.dr_time_s, data.speed_mps)
+    return gps_inliers(data.gps_time_s, data.gps_x_m, data.gps_y_m, data.dr_time_s, travel)
 
 
 def evaluate(
     data: VictoriaParkData, times: np.ndarray, poses: np.ndarray, keep: np.ndarray
 ) -> dict[str, float]:
-    """ATE against the kept GPS fixes within the run's time span."""
-    t = data.gps_time_s
-    inside = keep & (t >= times[0]) & (t <= times[-1])
-    # the latest pose at or before each fix time (the filter's estimate then)
-    k = np.searchsorted(times, t[inside], side="right") - 1
-    est = poses[np.maximum(k, 0), :2]
-    gps = np.stack([data.gps_x_m[inside], data.gps_y_m[inside]], 1)
-    r, tr = rigid_align(est, gps)
-    err = np.linalg.norm(est @ r.T + tr - gps, axis=1)
+    """ATE against the kept GPS fixes within the run's time span (hilnav.analysis.gps_error)."""
+    ge = errors_at_fixes(
+        times, poses[:, 0], poses[:, 1], data.gps_time_s, data.gps_x_m, data.gps_y_m, keep
+    )
+    if ge is None:
+        raise ValueError("fewer than two GPS fixes within the run")
     return {
-        "ate_rmse_m": float(np.sqrt(np.mean(err**2))),
-        "max_err_m": float(err.max()),
-        "median_err_m": float(np.median(err)),
-        "gps_fixes_used": int(inside.sum()),
-        "rotation_rad": float(np.arctan2(r[1, 0], r[0, 0])),
-        "_r": r,
-        "_t": tr,
+        "ate_rmse_m": ge.ate_rmse_m,
+        "max_err_m": float(ge.error_fit.max()),
+        "median_err_m": float(np.median(ge.error_fit)),
+        "gps_fixes_used": len(ge.used),
+        "rotation_rad": ge.fit[2],
+        "_fit": ge.fit,
     }
 
 
@@ -187,9 +163,10 @@ def plot(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    r, t = ev["_r"], ev["_t"]
-    p = poses[:, :2] @ r.T + t
-    lm = landmarks @ r.T + t if len(landmarks) else landmarks.reshape(0, 2)
+    p = np.column_stack(apply_fit(ev["_fit"], poses[:, 0], poses[:, 1]))
+    lm = landmarks.reshape(-1, 2)
+    if len(lm):
+        lm = np.column_stack(apply_fit(ev["_fit"], lm[:, 0], lm[:, 1]))
     fig, ax = plt.subplots(figsize=(9, 9), dpi=110)
     ax.plot(data.gps_x_m[keep], data.gps_y_m[keep], ".", ms=2, color="tab:red", label="GPS")
     ax.plot(
@@ -253,8 +230,8 @@ def windowed_dr_error(
         gps = np.stack([data.gps_x_m[sel], data.gps_y_m[sel]], 1)
         if np.ptp(gps, axis=0).max() < 20.0:  # the car hardly moved: nothing to judge
             continue
-        r, tr = rigid_align(est, gps)
-        rms.append(np.sqrt(np.mean(np.sum((est @ r.T + tr - gps) ** 2, 1))))
+        fx, fy = apply_fit(rigid_fit(est, gps), est[:, 0], est[:, 1])
+        rms.append(np.sqrt(np.mean((fx - gps[:, 0]) ** 2 + (fy - gps[:, 1]) ** 2)))
     rms = np.array(rms)
     return {"windows": len(rms), "median_m": float(np.median(rms)), "mean_m": float(rms.mean())}
 
@@ -269,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     data = load_victoria_park(args.data)
-    keep = gps_inliers(data)
+    keep = gps_keep(data)
     print(f"GPS: {len(keep)} fixes, {int((~keep).sum())} excluded as outliers")
     results = {}
     if args.compare:

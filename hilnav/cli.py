@@ -22,6 +22,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.config",
     "hilnav.commands.run",
     "hilnav.commands.log",
+    "hilnav.commands.map",
     "hilnav.commands.analyze",
     "hilnav.commands.replay",
     "hilnav.commands.importer",

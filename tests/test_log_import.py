@@ -83,6 +83,10 @@ def test_import_of_a_missing_folder_is_a_clear_error(tmp_path: Path) -> None:
     )  # fmt: skip
     assert proc.returncode == 2
     assert "not found" in proc.stderr and "Traceback" not in proc.stderr
+    # ... and where the data set comes from, for a clone without ../shared
+    for words in ("ACFR", "aa3_dr.mat", "aa3_gpsx.mat", "VictoriaParkSinSincronizar.mat"):
+        assert words in proc.stderr
+    assert "shared/data/victoria_park" in proc.stderr and "victoria_park.htm" in proc.stderr
 
 
 def test_replay_runs_ekf_slam_on_it_deterministically(vp_dir: Path, tmp_path: Path) -> None:

@@ -1,4 +1,5 @@
-"""Map export: PGM + YAML (ROS map_server), PNG, foxglove.Grid; map quality against a plan."""
+"""Map export: foxglove.Grid, PNG pictures; map quality against a plan. (Map files for nav2
+are tested in test_mapping_mapfile.py.)"""
 
 import json
 
@@ -8,14 +9,10 @@ from matplotlib import image as mpimg
 
 from fakes.world import load
 from mapping.export import (
-    FREE_VALUE,
-    OCCUPIED_VALUE,
-    UNKNOWN_VALUE,
+    PICTURE_UNKNOWN,
     from_grid_msg,
-    read_map,
+    occupancy_probability,
     to_grid_msg,
-    trinary_cells,
-    write_map,
     write_png,
 )
 from mapping.grid import GridConfig, OccupancyGrid
@@ -32,45 +29,12 @@ def _random_grid(seed=0, shape=(37, 53)):
     return OccupancyGrid.from_array(lo, 0.05, (-1.25, 2.5))
 
 
-def test_pgm_yaml_round_trip_trinary(tmp_path):
-    g = _random_grid()
-    pgm, yml = write_map(g, tmp_path / "room")
-    back = read_map(yml)
-    assert np.array_equal(back.cells, trinary_cells(g))
-    assert back.resolution == g.resolution and back.origin == (-1.25, 2.5, 0.0)
-    assert (back.mode, back.occupied_thresh, back.free_thresh, back.negate) == (
-        "trinary", 0.65, 0.196, 0)  # fmt: skip
-    assert back.image == "room.pgm"
-    # The raw pixels follow map_server: 0 occupied, 254 free, 205 unknown, top row = max y.
-    header = b"P5\n53 37\n255\n"
-    raw = pgm.read_bytes()
-    assert raw.startswith(header)
-    px = np.frombuffer(raw[len(header) :], dtype=np.uint8).reshape(37, 53)
-    assert set(np.unique(px)) <= {OCCUPIED_VALUE, FREE_VALUE, UNKNOWN_VALUE}
-    assert px[0, 0] == {100: 0, 0: 254, -1: 205}[int(trinary_cells(g)[-1, 0])]
-
-
-def test_pgm_yaml_round_trip_scale(tmp_path):
-    g = _random_grid(1)
-    _, yml = write_map(g, tmp_path / "m.yaml", mode="scale")
-    back = read_map(yml)
-    p = g.probability()
-    unknown = g.logodds == 0
-    assert np.array_equal(np.isnan(back.cells), unknown | (np.round(255 * (1 - p)) == 205))
-    known = ~np.isnan(back.cells)
-    assert np.allclose(back.cells[known], p[known], atol=0.5 / 255 + 1e-9)
-
-
-def test_bad_map_files_give_clear_errors(tmp_path):
-    (tmp_path / "a.yaml").write_text("image: a.pgm\nresolution: 0.1\n")
-    with pytest.raises(ValueError, match="origin"):
-        read_map(tmp_path / "a.yaml")
-    (tmp_path / "b.pgm").write_bytes(b"P2\n1 1\n255\n0\n")
-    (tmp_path / "b.yaml").write_text("image: b.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n")
-    with pytest.raises(ValueError, match="P5"):
-        read_map(tmp_path / "b.yaml")
-    with pytest.raises(ValueError, match="mode"):
-        write_map(_random_grid(), tmp_path / "c", mode="raw")
+def test_probability_of_a_grid_and_of_its_message_agree():
+    g = _random_grid(4)
+    p, q = occupancy_probability(g), occupancy_probability(to_grid_msg(g, 1))
+    assert np.array_equal(np.isnan(p), g.logodds == 0) and np.array_equal(np.isnan(p), np.isnan(q))
+    known = ~np.isnan(p)
+    assert np.allclose(p[known], q[known], atol=0.005 + 1e-9)
 
 
 def test_png_reads_back_as_the_map_picture(tmp_path):
@@ -80,7 +44,7 @@ def test_png_reads_back_as_the_map_picture(tmp_path):
     assert img.shape == (2 * 37, 2 * 53)
     px = np.round(img[::2, ::2] * 255).astype(int)[::-1]
     unknown = g.logodds == 0
-    assert np.all(px[unknown] == UNKNOWN_VALUE)
+    assert np.all(px[unknown] == PICTURE_UNKNOWN)
     expected = np.round(255 * (1 - g.probability()))
     assert np.array_equal(px[~unknown], expected[~unknown])
 

@@ -22,10 +22,12 @@ import numpy as np
 from hilnav.analysis.containment import box_series, box_summary, ekf_containment
 from hilnav.analysis.errors import SourceErrors, source_errors, source_track
 from hilnav.analysis.geometry import path_length
+from hilnav.analysis.gps_error import WINDOW_S, gps_inliers, travelled_from_speed
 from hilnav.analysis.maps import map_summary
 from hilnav.analysis.result import (
     Analysis,
     DeviceSummary,
+    GpsFixes,
     LandmarkSummary,
     RobotAnalysis,
     RobotSeries,
@@ -67,22 +69,43 @@ def reference_of(rl: RobotLog) -> tuple[Track, str, bool]:
     return Track(), "none", False
 
 
+def gps_keep(rl: RobotLog) -> tuple[np.ndarray, str | None]:
+    """The robot's GPS fixes (time order) kept by the outlier rule of gps_error, judged by
+    the distance the controls' speeds or else the odometry say was travelled (all kept
+    when the log has neither), and what that distance came from."""
+    t, x, y, _ = rl.gps.arrays()
+    if len(rl.speeds) >= 2:
+        ts, v = np.array(sorted(rl.speeds)).T
+        travel_t, travel, source = ts, travelled_from_speed(ts, v, ns=True), "controls"
+    elif len(rl.sources.get("odometry", ())) >= 2:
+        travel_t, ox, oy, _ = rl.sources["odometry"].arrays()
+        travel, source = path_length(ox, oy), "odometry"
+    else:
+        return np.ones(len(t), dtype=bool), None
+    return gps_inliers(t, x, y, travel_t, travel, window=WINDOW_S * NS), source
+
+
 def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
     """Every figure the robot's messages allow (see the module docstring)."""
     ref, ref_name, ref_heading = reference_of(rl)
+    keep, fixes = None, None
+    if ref_name == "gps":
+        keep, travelled_from = gps_keep(rl)
+        fixes = GpsFixes(len(keep), int(np.count_nonzero(~keep)), travelled_from)
     errs: dict[str, SourceErrors] = {}
     for name in sorted(rl.sources):
         if name == "gyro" and not ref_heading:
             continue
-        e = source_errors(name, rl.sources[name], ref, ref_heading)
+        e = source_errors(name, rl.sources[name], ref, ref_heading, keep)
         if e is not None:
             errs[name] = e
     bs = box_series(rl)
     ra = RobotAnalysis(
         name=rl.name,
         reference=ref_name,
+        gps_fixes=fixes,
         topics=dict(sorted(rl.counts.items())),
-        series=RobotSeries(rl, errs, bs),
+        series=RobotSeries(rl, errs, bs, keep),
         paths={name: source_track(name, e, ref_heading) for name, e in errs.items()},
         cp_boxes=box_summary(bs) if bs is not None else None,
         map=map_summary(rl, plan_name),

@@ -1,9 +1,11 @@
 """Errors of each pose source against the reference (truth, else GPS), and heading drift.
 
 - **path error** of every pose source — ``pose`` (pose EKF), ``heading`` (heading filter's
-  dead reckoning), ``odometry`` (raw ARCOS odometry), ... — against the reference
-  interpolated in time; dead-reckoning sources are aligned to the reference at their
-  first sample, and errors after the best rigid fit of the whole track are given too.
+  dead reckoning), ``odometry`` (raw ARCOS odometry), ... — against the truth
+  interpolated in time, or against the GPS fixes as ``gps_error`` defines it (the
+  source's latest pose at each fix kept by the outlier rule); dead-reckoning sources are
+  aligned to the reference at their first sample, and errors after the best rigid fit of
+  the whole track are given too.
 - **heading drift per metre** (ir-grid-mapping.txt, eq. 2: encoders drift by about
   alpha = 3 deg/m): final |heading error| over the distance travelled, and the
   least-squares slope of |heading error| against distance; also for the gyro's integrated
@@ -18,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hilnav.analysis.geometry import align_at_start, apply_fit, interp_pose, path_length, rigid_fit
+from hilnav.analysis.gps_error import errors_at_fixes
 from hilnav.analysis.result import (
     HeadingDrift,
     HeadingErrors,
@@ -59,16 +62,17 @@ class SourceErrors:
 
 
 def source_errors(
-    name: str, track: Track, ref: Track, ref_has_heading: bool
+    name: str, track: Track, ref: Track, ref_has_heading: bool, keep: np.ndarray | None = None
 ) -> SourceErrors | None:
     """Errors of one pose source against the reference.
 
     With truth (dense, with heading) the truth is interpolated at the source's times; with
-    GPS fixes (sparse, with gaps, no heading) the source is interpolated at the fixes'
-    times. Dead-reckoning sources are first aligned at their first sample. The errors after
-    the best rigid fit of the whole track to the reference are reported too (the absolute
-    trajectory error of SLAM evaluations), which is what counts for a source in a frame of
-    its own (SLAM against GPS).
+    GPS fixes (sparse, with gaps, no heading) the errors are those of
+    :mod:`hilnav.analysis.gps_error` at the fixes ``keep`` keeps (None: all). Dead-reckoning
+    sources are first aligned at their first sample. The errors after the best rigid fit of
+    the whole track to the reference are reported too (the absolute trajectory error of
+    SLAM evaluations), which is what counts for a source in a frame of its own (SLAM
+    against GPS).
     """
     if len(track) == 0 or len(ref) < 2:
         return None
@@ -96,12 +100,13 @@ def source_errors(
             ex, ey = qx.copy(), qy.copy()
         head = wrap(eth - qth)
     else:
-        ex, ey, _, ok = interp_pose(t, x, y, np.zeros(len(t)), rt)
-        if ok.sum() < 2:
+        ge = errors_at_fixes(t, x, y, rt, rx, ry, keep)
+        if ge is None:
             return None
-        te, ex, ey = rt[ok], ex[ok], ey[ok]
-        qx, qy = rx[ok], ry[ok]
+        te = rt[ge.used]
+        dist = np.interp(te.astype(float), rt.astype(float), path_length(rx, ry))
         head = np.full(len(te), np.nan)
+        return SourceErrors(te, ge.error, head, dist - dist[0], x, y, ge.fit, ge.error_fit)
     if name == "gyro":
         pos = fit_err = np.full(len(te), np.nan)
         fit = (0.0, 0.0, 0.0)

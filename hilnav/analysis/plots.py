@@ -10,6 +10,7 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.colors import to_rgb  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
 from hilnav.analysis.geometry import apply_fit  # noqa: E402
@@ -51,6 +52,38 @@ def _save(fig, path: Path) -> Path:  # noqa: ANN001
     return path
 
 
+# At most this many CP boxes are drawn on the path plot, evenly spaced in time.
+PATH_BOXES = 6
+
+
+def _gps_points(ax, ra: RobotAnalysis) -> None:  # noqa: ANN001
+    """The GPS fixes: kept ones as dots, those the outlier rule excluded as crosses."""
+    _, gx, gy, _ = ra.series.log.gps.arrays()
+    keep = ra.series.gps_keep
+    if keep is None:
+        keep = np.ones(len(gx), dtype=bool)
+    ax.scatter(gx[keep], gy[keep], s=6, color=_color("gps"), label="GPS", zorder=2)
+    if (~keep).any():
+        ax.scatter(gx[~keep], gy[~keep], s=14, marker="x", lw=0.8, color="tab:brown",
+                   label="GPS outliers (excluded)", zorder=2)  # fmt: skip
+
+
+def _sparse_boxes(ax, ra: RobotAnalysis) -> None:  # noqa: ANN001
+    """A few CP boxes (evenly spaced in time, the last included), lightly filled, below
+    the paths, so that they show the box size without hiding the paths."""
+    boxes = [b for b in ra.series.boxes.boxes if not (b.x.empty or b.y.empty)]
+    if not boxes:
+        return
+    picks = sorted({round(i) for i in np.linspace(0, len(boxes) - 1, min(PATH_BOXES, len(boxes)))})
+    for n, i in enumerate(picks):
+        b = boxes[i]
+        ax.add_patch(
+            Rectangle((b.x.lo, b.y.lo), b.x.width, b.y.width, fc=(*to_rgb("tab:cyan"), 0.06),
+                      ec="tab:cyan", lw=0.8, ls="--", zorder=1.5,
+                      label=f"CP boxes ({len(picks)} of {len(boxes)})" if n == 0 else None)
+        )  # fmt: skip
+
+
 def plot_path(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | None:
     rl, errors, boxes = ra.series.log, ra.series.errors, ra.series.boxes
     if not rl.sources and len(rl.truth) == 0 and len(rl.gps) == 0:
@@ -58,11 +91,10 @@ def plot_path(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | No
     fig, ax = plt.subplots(figsize=(7, 6))
     _plan_walls(ax, plan_name)
     if len(rl.gps):
-        _, gx, gy, _ = rl.gps.arrays()
-        ax.scatter(gx, gy, s=6, color=_color("gps"), label="GPS", zorder=2)
-    if len(rl.truth):
+        _gps_points(ax, ra)
+    if len(rl.truth):  # wide and pale, under the estimates that follow it closely
         _, tx, ty, _ = rl.truth.arrays()
-        ax.plot(tx, ty, color=_color("truth"), lw=2.0, label="truth", zorder=4)
+        ax.plot(tx, ty, color="0.7", lw=3.5, label="truth", zorder=2.5, solid_capstyle="round")
     fitted = ra.reference == "gps"  # other frames: draw each track after its rigid fit
     for name, tr in sorted(rl.sources.items()):
         if name == "gyro" or len(tr) == 0:
@@ -75,21 +107,14 @@ def plot_path(ra: RobotAnalysis, plan_name: str | None, path: Path) -> Path | No
                 label += " (rigid fit)"
         else:
             _, x, y, _ = tr.arrays()
-        ax.plot(x, y, color=_color(name), lw=1.2, label=label, zorder=3)
+        ax.plot(x, y, color=_color(name), lw=0.9, label=label, zorder=3)
     if rl.landmarks is not None and len(rl.landmarks.xs):
         lx, ly = np.asarray(rl.landmarks.xs, float), np.asarray(rl.landmarks.ys, float)
         if fitted and "pose" in errors:
             lx, ly = apply_fit(errors["pose"].fit, lx, ly)
         ax.scatter(lx, ly, marker="+", s=25, color="tab:olive", label="landmarks", zorder=5)
     if boxes is not None:
-        step = max(1, len(boxes.boxes) // 40)
-        for b in boxes.boxes[::step]:
-            if b.x.empty or b.y.empty:
-                continue
-            ax.add_patch(
-                Rectangle((b.x.lo, b.y.lo), b.x.width, b.y.width, fill=False, ec="tab:cyan", lw=0.6)
-            )
-        ax.plot([], [], color="tab:cyan", lw=0.6, label="CP boxes")
+        _sparse_boxes(ax, ra)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -133,14 +158,22 @@ def plot_errors(ra: RobotAnalysis, path: Path) -> Path | None:
     n = 2 if has_head else 1
     fig, axes = plt.subplots(n, 1, figsize=(8, 3.2 * n), sharex=True, squeeze=False)
     t0 = min(int(e.t[0]) for e in ra.series.errors.values())
+    fitted = ra.reference == "gps"  # as the path plot draws them: after the rigid fit
     for name, e in sorted(ra.series.errors.items()):
         ts = (e.t - t0) / NS
-        if np.isfinite(e.pos_err).any():
-            axes[0, 0].plot(ts, e.pos_err, color=_color(name), lw=1.0, label=name)
+        pos = e.pos_err_fit if fitted else e.pos_err
+        if np.isfinite(pos).any():
+            axes[0, 0].plot(ts, pos, color=_color(name), lw=1.0, label=name)
         if has_head and np.isfinite(e.head_err).any():
             axes[1, 0].plot(ts, np.degrees(e.head_err), color=_color(name), lw=1.0, label=name)
     axes[0, 0].set_ylabel("position error (m)")
-    axes[0, 0].set_title(f"{ra.name}: errors against {ra.reference}")
+    title = f"{ra.name}: errors against {ra.reference}"
+    if fitted:
+        fx = ra.gps_fixes
+        title += " after the rigid fit"
+        if fx is not None and fx.excluded:
+            title += f" ({fx.excluded} of {fx.fixes} fixes excluded as outliers)"
+    axes[0, 0].set_title(title)
     axes[0, 0].legend(loc="best", fontsize=8)
     axes[0, 0].grid(alpha=0.3)
     if has_head:

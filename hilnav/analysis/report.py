@@ -102,6 +102,8 @@ def _robot(ra: RobotAnalysis) -> JsonDict:
     out: JsonDict = {"reference": ra.reference, "topics": dict(ra.topics)}
     if ra.reference_distance_m is not None:
         out["reference_distance_m"] = ra.reference_distance_m
+    if ra.gps_fixes is not None:
+        out["gps_fixes"] = asdict(ra.gps_fixes)
     if ra.paths:
         out["paths"] = {name: _source(s) for name, s in ra.paths.items()}
     if ra.ekf_3sigma:
@@ -158,10 +160,18 @@ def digest(analysis: Analysis) -> list[str]:
     lines = []
     for robot in sorted(analysis.robots):
         ra = analysis.robots[robot]
+        fitted = ra.reference == "gps"  # as plotted: after the rigid fit
         for src in ("pose", "heading", "odometry"):
             s = ra.paths.get(src)
-            e = s.position.error_m if s is not None and s.position is not None else None
+            p = s.position if s is not None else None
+            e = (p.after_rigid_fit_m if fitted else p.error_m) if p is not None else None
             if e is None:
+                continue
+            if fitted:
+                lines.append(
+                    f"  {robot} {src:8s} error against GPS after the rigid fit: RMS "
+                    f"{e.rms:.3f} m, max {e.max:.3f} m"
+                )
                 continue
             drift = s.heading.drift if s.heading is not None else None
             d = drift.slope_deg_per_m if drift is not None else None

@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from hilnav.analysis.containment import BoxSeries
     from hilnav.analysis.errors import SourceErrors
     from hilnav.analysis.tracks import RobotLog
@@ -150,6 +152,15 @@ class DeviceSummary:
     errors: list[str]
 
 
+@dataclass(frozen=True)
+class GpsFixes:
+    """The GPS fixes of a GPS reference, and how many the outlier rule excluded."""
+
+    fixes: int
+    excluded: int
+    travelled_from: str | None  # "controls", "odometry"; None: no rule (nothing to judge by)
+
+
 @dataclass
 class RobotSeries:
     """The series behind the figures, for the plots."""
@@ -157,6 +168,7 @@ class RobotSeries:
     log: RobotLog
     errors: dict[str, SourceErrors]
     boxes: BoxSeries | None
+    gps_keep: np.ndarray | None = None  # fixes kept by the GPS outlier rule (time order)
 
 
 @dataclass
@@ -168,6 +180,7 @@ class RobotAnalysis:
     topics: dict[str, int]
     series: RobotSeries
     reference_distance_m: float | None = None
+    gps_fixes: GpsFixes | None = None  # with a GPS reference
     paths: dict[str, SourceTrack] = field(default_factory=dict)
     ekf_3sigma: dict[str, EkfContainment] = field(default_factory=dict)
     cp_boxes: BoxSummary | None = None

@@ -29,6 +29,7 @@ from msgs import (
     PoseEstimate,
     RobotInfo,
     RobotOdometry,
+    VehicleControl,
 )
 
 NS = 1_000_000_000
@@ -77,6 +78,7 @@ class RobotLog:
     truth: Track = field(default_factory=Track)
     sources: dict[str, Track] = field(default_factory=dict)  # pose, heading, odometry, gyro
     gps: Track = field(default_factory=Track)
+    speeds: list[tuple[int, float]] = field(default_factory=list)  # (t, m/s) of controls
     boxes: list[tuple[int, PoseBox]] = field(default_factory=list)
     last_map: OccupancyGridMsg | None = None
     maps: int = 0
@@ -121,6 +123,8 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
         elif isinstance(msg, GpsFix):
             if msg.east_m is not None and msg.north_m is not None:
                 rl.gps.add(t, msg.east_m, msg.north_m, math.nan)
+        elif isinstance(msg, VehicleControl):
+            rl.speeds.append((t, msg.speed_mps))
         elif isinstance(msg, PoseBox):
             rl.boxes.append((t, msg))
         elif isinstance(msg, OccupancyGridMsg):

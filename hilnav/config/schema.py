@@ -205,7 +205,10 @@ class LocalizationService:
     wheel_abs_bound_m: float = field(default=0.003, metadata=_positive("0.003"))
     wheel_rel_bound: float = field(default=0.01, metadata=_fraction())
     wheelbase_bound_m: float = field(default=0.01, metadata=_check(lambda v: v >= 0, ">= 0"))
-    gps_bound_m: float = field(default=6.0, metadata=_positive("6.0"))
+    # 3 sigma per axis of a consumer receiver in open sky, the fake's error model
+    # (fakes/world/gps_model.py: bias 1.5 m and white 0.5 m per axis, sqrt(1.5^2 + 0.5^2)
+    # = 1.58 m; 3 x 1.58 = 4.74 m); fixes beyond it are what gps_outliers is for.
+    gps_bound_m: float = field(default=4.75, metadata=_positive("4.75"))
     gps_outliers: int = field(default=2, metadata=_check(lambda v: v >= 0, ">= 0"))
     gyro_bound_deg: float = field(default=1.0, metadata=_positive("1.0"))
     gyro_drift_bound_degps: float = field(default=0.3, metadata=_check(lambda v: v >= 0, ">= 0"))

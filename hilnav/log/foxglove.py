@@ -7,10 +7,10 @@ native message into zero or more such views, each ``(topic, schema_name, dict)``
 
 | native topic (``/<robot>/...``) | view | view topic |
 |---|---|---|
-| ``pose`` (PoseEstimate)     | foxglove.PoseInFrame, foxglove.FrameTransform map->odom | ``/<robot>/fox/pose``, ``/tf`` |
+| ``pose`` (PoseEstimate)     | foxglove.PoseInFrame, foxglove.FrameTransform map-><robot>/odom | ``/<robot>/fox/pose``, ``/tf`` |
 | ``heading`` (HeadingEstimate)| foxglove.PoseInFrame        | ``/<robot>/fox/heading`` |
 | ``truth`` (GroundTruth)     | foxglove.PoseInFrame        | ``/<robot>/fox/truth`` |
-| ``odometry`` (RobotOdometry)| foxglove.FrameTransform odom->base_link | ``/tf`` |
+| ``odometry`` (RobotOdometry)| foxglove.FrameTransform <robot>/odom-><robot>/base_link | ``/tf`` |
 | ``gps`` (GpsFix with lat/lon)| foxglove.LocationFix       | ``/<robot>/fox/gps`` |
 | ``pose_box`` (PoseBox)      | foxglove.SceneUpdate: a cube and two heading arrows | ``/<robot>/fox/pose_box`` |
 | landmarks (LandmarkMap: ``xs``/``ys``) | foxglove.SceneUpdate: spheres (3-sigma size) | ``/<robot>/fox/<topic>`` |
@@ -18,6 +18,12 @@ native message into zero or more such views, each ``(topic, schema_name, dict)``
 The map (``msgs.OccupancyGridMsg``) already *is* a ``foxglove.Grid`` and needs no view.
 map->odom needs the latest odometry pose: :class:`ViewState` keeps it (pure, no clock).
 The JSON Schemas of the view schemas are in :mod:`hilnav.log.foxglove_schemas`.
+
+Frames follow REP-105 with one tree per robot under a shared world frame, so the logs of
+several robots open together without clashing: ``map`` (shared) -> ``<robot>/odom`` ->
+``<robot>/base_link`` (:func:`robot_frame`). A message's own frame (``map`` for every
+estimate, box and landmark map today) is kept when it is ``map`` and prefixed with the
+robot otherwise; the GPS fix is in ``<robot>/base_link`` (the antenna on the robot).
 """
 
 from __future__ import annotations
@@ -42,12 +48,26 @@ View = tuple[str, str, dict[str, Any]]
 
 TF_TOPIC = "/tf"
 VIEW_PREFIX = "fox"
+WORLD_FRAME = "map"  # shared by every robot (REP-105 map)
+ODOM_FRAME = "odom"  # per robot: <robot>/odom
+BASE_FRAME = "base_link"  # per robot: <robot>/base_link
 
 BOX_COLOR = {"r": 0.2, "g": 0.5, "b": 1.0, "a": 0.35}
 ARROW_COLOR = {"r": 0.1, "g": 0.3, "b": 0.9, "a": 0.9}
 LANDMARK_COLOR = {"r": 0.1, "g": 0.7, "b": 0.2, "a": 0.8}
 # GPS user-equivalent range error (m) turning an HDOP into an approximate std deviation.
 GPS_UERE_M = 5.0
+
+
+def robot_frame(robot: str, frame: str) -> str:
+    """The frame ``frame`` of ``robot`` in the views: ``map`` is shared, others are per robot.
+
+    ``robot_frame("r1", "odom") == "r1/odom"``; ``map``, an already qualified name
+    (``r2/odom``) and any frame of a topic without a robot are kept as they are.
+    """
+    if not robot or frame == WORLD_FRAME or "/" in frame:
+        return frame
+    return f"{robot}/{frame}"
 
 
 def time_of(stamp_ns: int) -> dict[str, int]:
@@ -91,7 +111,7 @@ def inverse(a: Pose2D) -> Pose2D:
     return Pose2D(-c * a.x - s * a.y, s * a.x - c * a.y, wrap_angle(-a.theta))
 
 
-def location_fix(fix: GpsFix, frame: str = "gps") -> dict[str, Any] | None:
+def location_fix(fix: GpsFix, frame: str = BASE_FRAME) -> dict[str, Any] | None:
     """foxglove.LocationFix of a fix with a position (None without lat/lon).
 
     Covariance (ENU, m^2): per-axis std deviations when the receiver gave them
@@ -144,9 +164,12 @@ def _entity(stamp_ns: int, frame: str, ident: str, **prims: list[dict[str, Any]]
     return ent
 
 
-def pose_box_scene(box: PoseBox) -> dict[str, Any]:
-    """foxglove.SceneUpdate of a CP box: a flat cube over x/y and arrows at theta lo/hi."""
+def pose_box_scene(box: PoseBox, frame: str | None = None) -> dict[str, Any]:
+    """foxglove.SceneUpdate of a CP box: a flat cube over x/y and arrows at theta lo/hi.
+
+    ``frame`` is the entity's frame (default: the box's own)."""
     ident = f"{box.robot}/pose_box"
+    frame = box.frame if frame is None else frame
     if box.x.empty or box.y.empty or box.theta.empty:
         deletion = {"timestamp": time_of(box.stamp_ns), "type": 0, "id": ident}
         return {"deletions": [deletion], "entities": []}
@@ -171,7 +194,7 @@ def pose_box_scene(box: PoseBox) -> dict[str, Any]:
     ]
     return {
         "deletions": [],
-        "entities": [_entity(box.stamp_ns, box.frame, ident, cubes=[cube], arrows=arrows)],
+        "entities": [_entity(box.stamp_ns, frame, ident, cubes=[cube], arrows=arrows)],
     }
 
 
@@ -229,53 +252,46 @@ class ViewState:
     odom: dict[str, Pose2D] = field(default_factory=dict)
 
 
+def _pose_views(robot: str, topic: str, msg: PoseEstimate, state: ViewState | None) -> list[View]:
+    """The estimate in its frame, and map -> <robot>/odom when it is in ``map``."""
+    frame = robot_frame(robot, msg.frame)
+    out: list[View] = [
+        (topic, "foxglove.PoseInFrame", pose_in_frame(msg.stamp_ns, frame, msg.pose))
+    ]
+    odom = state.odom.get(robot) if state is not None else None
+    if odom is not None and msg.frame == WORLD_FRAME:
+        map_odom = compose(msg.pose, inverse(odom))
+        child = robot_frame(robot, ODOM_FRAME)
+        tf = frame_transform(msg.stamp_ns, WORLD_FRAME, child, map_odom)
+        out.append((TF_TOPIC, "foxglove.FrameTransform", tf))
+    return out
+
+
 def views(topic: str, msg: Any, state: ViewState | None = None) -> list[View]:
     """Foxglove views of the message ``msg`` logged on ``topic`` (may be empty)."""
     robot, name = split_log_topic(topic)
-    base = f"/{robot}/{VIEW_PREFIX}" if robot else f"/{VIEW_PREFIX}"
-    out: list[View] = []
+    vtopic = f"/{robot}/{VIEW_PREFIX}/{name}" if robot else f"/{VIEW_PREFIX}/{name}"
     if isinstance(msg, PoseEstimate):
-        out.append(
-            (
-                f"{base}/{name}",
-                "foxglove.PoseInFrame",
-                pose_in_frame(msg.stamp_ns, msg.frame, msg.pose),
-            )
-        )
-        odom = state.odom.get(robot) if state is not None else None
-        if odom is not None and msg.frame == "map":
-            map_odom = compose(msg.pose, inverse(odom))
-            out.append(
-                (
-                    TF_TOPIC,
-                    "foxglove.FrameTransform",
-                    frame_transform(msg.stamp_ns, "map", "odom", map_odom),
-                )
-            )
-    elif isinstance(msg, HeadingEstimate | GroundTruth):
-        view = pose_in_frame(msg.stamp_ns, "map", msg.pose)
-        out.append((f"{base}/{name}", "foxglove.PoseInFrame", view))
-    elif isinstance(msg, RobotOdometry):
+        return _pose_views(robot, vtopic, msg, state)
+    if isinstance(msg, HeadingEstimate | GroundTruth):
+        view = pose_in_frame(msg.stamp_ns, WORLD_FRAME, msg.pose)
+        return [(vtopic, "foxglove.PoseInFrame", view)]
+    if isinstance(msg, RobotOdometry):
         if state is not None:
             state.odom[robot] = msg.pose
-        out.append(
-            (
-                TF_TOPIC,
-                "foxglove.FrameTransform",
-                frame_transform(msg.stamp_ns, "odom", "base_link", msg.pose),
-            )
-        )
-    elif isinstance(msg, GpsFix):
-        fix = location_fix(msg)
-        if fix is not None:
-            out.append((f"{base}/{name}", "foxglove.LocationFix", fix))
-    elif isinstance(msg, PoseBox):
-        out.append((f"{base}/{name}", "foxglove.SceneUpdate", pose_box_scene(msg)))
-    else:
-        pts = _landmark_points(msg)
-        if pts is not None:
-            stamp = int(getattr(msg, "stamp_ns", 0) or 0)
-            frame = str(getattr(msg, "frame", "map") or "map")
-            scene = landmark_scene(stamp, frame, f"{robot}/{name}", pts)
-            out.append((f"{base}/{name}", "foxglove.SceneUpdate", scene))
-    return out
+        odom, base = robot_frame(robot, ODOM_FRAME), robot_frame(robot, BASE_FRAME)
+        tf = frame_transform(msg.stamp_ns, odom, base, msg.pose)
+        return [(TF_TOPIC, "foxglove.FrameTransform", tf)]
+    if isinstance(msg, GpsFix):
+        fix = location_fix(msg, robot_frame(robot, BASE_FRAME))
+        return [] if fix is None else [(vtopic, "foxglove.LocationFix", fix)]
+    if isinstance(msg, PoseBox):
+        scene = pose_box_scene(msg, robot_frame(robot, msg.frame))
+        return [(vtopic, "foxglove.SceneUpdate", scene)]
+    pts = _landmark_points(msg)
+    if pts is None:
+        return []
+    stamp = int(getattr(msg, "stamp_ns", 0) or 0)
+    frame = robot_frame(robot, str(getattr(msg, "frame", WORLD_FRAME) or WORLD_FRAME))
+    scene = landmark_scene(stamp, frame, f"{robot}/{name}", pts)
+    return [(vtopic, "foxglove.SceneUpdate", scene)]

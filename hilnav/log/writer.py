@@ -1,7 +1,8 @@
 """MCAP log writer: every message as hilnav JSON, plus Foxglove views, crash-safe.
 
 One channel per (topic, schema). A native message goes on its topic with schema
-``msgs.schema_name(cls)`` (``hilnav.<Class>``, JSON Schema from ``msgs.json_schema``) and
+``msgs.schema_name(cls)`` (``hilnav.<Class>``, JSON Schema from ``msgs.json_schema``; a
+message that is a Foxglove one, the map, gets Foxglove's official schema) and
 JSON encoding (``msgs.encode``); where a Foxglove schema fits, :mod:`hilnav.log.foxglove`
 adds a view on its own channel, so the Foxglove app draws the log with no plugin.
 
@@ -31,7 +32,7 @@ from mcap.writer import CompressionType, Writer
 
 import msgs
 from hilnav.log import foxglove
-from hilnav.log.foxglove_schemas import SCHEMAS
+from hilnav.log.foxglove_schemas import SCHEMAS, official_schema
 
 COMPRESSIONS = {
     "zstd": CompressionType.ZSTD,
@@ -191,7 +192,7 @@ class LogWriter:
             self._check_open()
             cid = self._channels.get((topic, name, "json"))
             if cid is None:
-                cid = self._channel_id(topic, name, msgs.json_schema(cls))
+                cid = self._channel_id(topic, name, official_schema(name) or msgs.json_schema(cls))
             self._add(cid, data, log_ns, pub_ns)
             if self._views:
                 self._write_views(topic, msg, log_ns, pub_ns)

@@ -31,6 +31,18 @@ LASER_FILE = "VictoriaParkSinSincronizar.mat"
 GPS_FILE = "aa3_gpsx.mat"
 #: Duration of the data set used for real-time factors (s).
 DURATION_S = 1549.0
+#: Where the data set comes from, for the errors about a missing folder or file.
+WHERE_FROM = (
+    "The data set is ACFR's Victoria Park (J. Guivant and E. Nebot, University of Sydney); "
+    f"its folder holds {DR_FILE}, {GPS_FILE} and {LASER_FILE}. A hilnav clone finds it in "
+    "the shared data folder beside the clone (../shared/data/victoria_park; "
+    "shared/data/README.md describes it and victoria_park/PROVENANCE.txt says where each "
+    "file was taken from). Without that folder, get the files from ACFR's Victoria Park "
+    "page (www-personal.acfr.usyd.edu.au/nebot/victoria_park.htm) or from the public "
+    "EKF-SLAM repositories that carry them (tzuyichiu/EKF-SLAM-2D on GitHub has "
+    f"{DR_FILE} and {GPS_FILE}, Mrstarr/Applied-Estimation-project has {LASER_FILE} in "
+    "Victoria_data/), put them in one folder and pass that folder."
+)
 
 
 class VictoriaParkError(ValueError):
@@ -86,7 +98,7 @@ def _load(path: Path) -> dict:
     if not path.is_file():
         raise VictoriaParkError(
             f"Victoria Park file missing: {path} (expected {DR_FILE}, {LASER_FILE} and "
-            f"{GPS_FILE} in {path.parent}; see shared/data/README.md)"
+            f"{GPS_FILE} in {path.parent}). {WHERE_FROM}"
         )
     try:
         return scipy.io.loadmat(str(path))
@@ -117,7 +129,7 @@ def load_victoria_park(directory: str | Path) -> VictoriaParkData:
     """
     d = Path(directory)
     if not d.is_dir():
-        raise VictoriaParkError(f"Victoria Park directory not found: {d}")
+        raise VictoriaParkError(f"Victoria Park directory not found: {d}. {WHERE_FROM}")
     dr_path, laser_path, gps_path = d / DR_FILE, d / LASER_FILE, d / GPS_FILE
     dr, laser, gps = _load(dr_path), _load(laser_path), _load(gps_path)
 
