@@ -2,8 +2,8 @@
 
 Keys are ``hilnav/<robot>/<topic>``, payloads the JSON of
 :func:`msgs.encode` with encoding ``application/json;hilnav.<Class>``; every sample a
-:class:`Bus` publishes carries its own robot name as the Zenoh attachment, so receivers
-know who sent it.
+:class:`Bus` publishes carries its own robot name as the Zenoh attachment (or that of the
+robot it speaks for: ``hilnav play`` replays a log's robots), so receivers know who sent it.
 
 One :class:`Bus` owns one Zenoh session opened from :class:`ZenohSettings`: peer mode,
 explicit ``listen``/``connect`` endpoints (``tcp/127.0.0.1:PORT``), multicast scouting OFF
@@ -193,18 +193,26 @@ class Bus:
         """Put ``msg`` on ``hilnav/<own robot>/<topic>``."""
         self.publish_to(self.robot, topic, msg)
 
-    def publish_to(self, robot: str, topic: str, msg: Any) -> None:
-        """Put ``msg`` on another robot's key (e.g. its ``cmd_vel``); sender = this bus."""
+    def publish_to(self, robot: str, topic: str, msg: Any, sender: str | None = None) -> None:
+        """Put ``msg`` on another robot's key (e.g. its ``cmd_vel``); sender = this bus,
+        unless ``sender`` names another (``hilnav play`` speaks for the robots of a log)."""
+        self.put_encoded(robot, topic, msgs.encode(msg), msgs.schema_name(type(msg)), sender)
+
+    def put_encoded(
+        self, robot: str, topic: str, data: bytes, schema_name: str, sender: str | None = None
+    ) -> None:
+        """Put an already encoded JSON payload on ``hilnav/<robot>/<topic>``."""
         k = key(robot, topic)
         pub = self._publishers.get(k)
         if pub is None:
             with self._lock:
                 pub = self._publishers.get(k)
                 if pub is None:
-                    enc = zenoh.Encoding.APPLICATION_JSON.with_schema(msgs.schema_name(type(msg)))
+                    enc = zenoh.Encoding.APPLICATION_JSON.with_schema(schema_name)
                     pub = self.session.declare_publisher(k, encoding=enc)
                     self._publishers[k] = pub
-        pub.put(msgs.encode(msg), attachment=self._attachment)
+        att = self._attachment if sender is None else sender.encode()
+        pub.put(data, attachment=att)
         with self._lock:
             self.stats.published += 1
 
@@ -216,13 +224,19 @@ class Bus:
         decodes the payload). Samples from outside the fleet, or that do not decode, are
         counted in :attr:`stats` and dropped.
         """
-        cls = topic_type(topic)
-        if cls is None:
+        if topic_type(topic) is None:
             raise ValueError(f"topic {topic!r}: not a hilnav topic; known: {sorted(TOPICS)}")
         if robot != "*":
             check_name(robot)
-        nparts = len(topic.split("/"))
+        return self._declare_subscriber(key(robot, topic), lambda r, t, m: callback(r, m))
 
+    def subscribe_all(self, callback: Callable[[str, str, Any], None]) -> Any:
+        """Call ``callback(robot, topic, msg)`` for every valid message of every robot
+        (``hilnav/*/**``), checked as :meth:`subscribe` does; keys that are no hilnav topic
+        (views played by ``hilnav play --topics``, say) are ignored."""
+        return self._declare_subscriber(key("*", "**"), callback)
+
+    def _declare_subscriber(self, keyexpr: str, callback: Callable[[str, str, Any], None]) -> Any:
         def on_sample(sample: zenoh.Sample) -> None:
             try:
                 deliver(sample)
@@ -231,7 +245,10 @@ class Bus:
 
         def deliver(sample: zenoh.Sample) -> None:
             parts = str(sample.key_expr).split("/")
-            src = parts[1] if len(parts) == 2 + nparts else ""
+            src, topic = (parts[1], "/".join(parts[2:])) if len(parts) > 2 else ("", "")
+            cls = topic_type(topic)
+            if cls is None:
+                return
             att = sample.attachment
             sender = att.to_bytes().decode("utf-8", "replace") if att is not None else ""
             if not src or not self.allowed(src) or not sender or not self.allowed(sender):
@@ -249,11 +266,11 @@ class Bus:
             with self._lock:
                 self.stats.received += 1
             try:
-                callback(src, msg)
+                callback(src, topic, msg)
             except Exception as exc:  # noqa: BLE001 - a callback must never kill Zenoh's thread
                 self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
 
-        sub = self.session.declare_subscriber(key(robot, topic), on_sample)
+        sub = self.session.declare_subscriber(keyexpr, on_sample)
         self._declared.append(sub)
         return sub
 

@@ -8,8 +8,10 @@ own thread), and publishes and logs as :mod:`hilnav.topics` says; every
 msgs.DaemonStatus. ``cmd_vel`` from the fleet reaches the wheels through the
 :class:`hilnav.motion.MotionGuard`, whose watchdog thread stops the robot on a command
 timeout or a stalled loop. The fleet's pose boxes feed cooperative localization; peers
-come and go by :class:`hilnav.peers.PeerTable`. An exception while handling one message
-is counted per place, reported on ``status`` and printed once per kind; the loop goes on.
+come and go by :class:`hilnav.peers.PeerTable`. Every message logged also goes to the other
+sinks (:mod:`hilnav.sinks`: the live Foxglove view of ``hilnav run --foxglove``), encoded
+once. An exception while handling one message is counted per place, reported on
+``status`` and printed once per kind; the loop goes on.
 Devices on "sim" ports are served by a ``hilnav fake`` child that dies with the daemon.
 Stop: motors, readers, the queue drained into the log, drivers, Zenoh, log, fakes.
 See docs/daemon.md.
@@ -33,6 +35,7 @@ from hilnav.fakeset import FakeProcess, FakeProcessError
 from hilnav.motion import MotionGuard
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
+from hilnav.sinks import Sink, Sinks, default_log_path, open_run_log
 from hilnav.topics import DEVICE_TOPICS, PEER_TOPICS, PUBLISHED, log_topic, raw_topic
 from msgs import DaemonStatus, DeviceDiagnostics, RawBytes, VelocityCommand
 
@@ -55,7 +58,7 @@ class DaemonStats:
 
     processed: int = 0
     published: int = 0
-    logged: int = 0
+    logged: int = 0  # taken by every sink (the log, the live view)
     dropped: int = 0
     by_topic: dict[str, int] = field(default_factory=dict)
     faults: dict[str, int] = field(default_factory=dict)
@@ -71,6 +74,7 @@ class Daemon:
         log_path: str | Path | None = None,
         zenoh: ZenohSettings | None = None,
         queue_size: int = 20000,
+        sinks: dict[str, Sink] | None = None,
     ) -> None:
         self.cfg = cfg
         self.robot = cfg.name
@@ -88,6 +92,7 @@ class Daemon:
         self.drivers: dict[str, Any] = {}
         self.bus: Bus | None = None
         self.log: Any = None
+        self.sinks = Sinks(sinks or {}, self._fault)  # + "log" when the log opens
         self.fake: FakeProcess | None = None
         self._loop_thread: threading.Thread | None = None
         self._stopped = False
@@ -145,34 +150,18 @@ class Daemon:
             self.bus.queryable(name, lambda n=name: latest.get(n))
 
     def _open_log(self) -> None:
-        cfg = self.cfg
-        if not cfg.log.enabled:
+        if not self.cfg.log.enabled:
             return
-        from hilnav.log.writer import LogWriter
-
-        if self.log_path is None:
-            stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
-            self.log_path = Path(cfg.log.dir) / f"{cfg.name}-{stamp}.mcap"
-        sim = self.fake is not None
-        meta = {
-            "robot": cfg.name,
-            "config": cfg.source,
-            "simulated": str(sim).lower(),
-            "plan": cfg.simulation.plan if sim else "",
-            "seed": str(cfg.simulation.seed) if sim else "",
-            "services": ",".join(self.pipeline.services),
-        }
+        self.log_path = self.log_path or default_log_path(self.cfg)
+        sim, services = self.fake is not None, self.pipeline.services
         try:
-            self.log_path.parent.mkdir(parents=True, exist_ok=True)
-            src = Path(cfg.source)
-            if cfg.source != "<defaults>" and src.is_file():
-                meta["config_toml"] = src.read_text(encoding="utf-8")  # for hilnav replay
-            self.log = LogWriter(self.log_path, compression=cfg.log.compression, metadata=meta)
+            self.log = open_run_log(self.cfg, self.log_path, simulated=sim, services=services)
         except OSError as exc:
             raise DaemonError(
                 f"cannot write the log {self.log_path}: {exc.strerror or exc}; set [log] dir "
                 "to a writable directory"
             ) from None
+        self.sinks.add("log", self.log)
 
     def wait(self, timeout_s: float | None = None) -> bool:
         """Block until :meth:`request_stop` (or the timeout); True if asked to stop."""
@@ -199,9 +188,7 @@ class Daemon:
         if self.bus is not None:
             with contextlib.suppress(Exception):
                 self.bus.close()
-        if self.log is not None:
-            with contextlib.suppress(Exception):
-                self.log.close()
+        self.sinks.close()
         if self.fake is not None:
             self.fake.stop()
 
@@ -352,19 +339,12 @@ class Daemon:
         self._log(log_topic(self.robot, topic), msg, log_ns)
 
     def _log(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
-        """Log time = when the daemon received the message (for a service output: when
-        it received the input that caused it, as ``hilnav replay`` does); publish time =
-        the message's own stamp (for device data the time its bytes were read)."""
-        if self.log is None:
-            return
-        stamp = getattr(msg, "stamp_ns", None)
-        if not isinstance(stamp, int) or not 0 < stamp < 2**63:
-            stamp = None
-        try:
-            self.log.write(mcap_topic, msg, log_ns, stamp)
+        """To every sink (log, live view). Log time = when the daemon received the message
+        (for a service output: when it received the input that caused it, as ``hilnav
+        replay`` does); publish time = the message's own stamp (for device data the time
+        its bytes were read)."""
+        if self.sinks and self.sinks.write(mcap_topic, msg, log_ns):
             self.stats.logged += 1
-        except Exception as exc:  # noqa: BLE001 - a message the log refuses is counted
-            self._fault("log", exc)
 
     def _diagnostics(self) -> None:
         stamp = time.time_ns()

@@ -1,23 +1,44 @@
-"""``hilnav log info FILE`` and ``hilnav log recover IN OUT``: inspect and repair MCAP logs."""
+"""``hilnav log info FILE``, ``hilnav log cat FILE`` and ``hilnav log recover IN OUT``:
+inspect, print and repair MCAP logs."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import sys
 from pathlib import Path
 
 from hilnav.errors import CliError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("log", help="inspect (info) and repair (recover) MCAP logs")
+    p = sub.add_parser("log", help="inspect (info, cat) and repair (recover) MCAP logs")
     lsub = p.add_subparsers(dest="log_command", metavar="ACTION")
     info = lsub.add_parser(
         "info", help="topics, schemas, counts, rates and duration of a log (also truncated)"
     )
     info.add_argument("file", help="MCAP log")
     info.add_argument("--json", action="store_true", help="print one JSON object instead")
+    info.add_argument(
+        "--scan",
+        action="store_true",
+        help="read every record even when the file has a summary (adds payload bytes)",
+    )
     info.set_defaults(func=run_info)
+    cat = lsub.add_parser(
+        "cat",
+        help="print a log's messages, one line each (like mcap cat)",
+        description="One line per message: log time (ns), topic, [schema] and the JSON "
+        "payload; with --json one JSON object per line. Views and raw bytes included; "
+        "a truncated file is read up to its last complete record.",
+    )
+    cat.add_argument("file", help="MCAP log")
+    cat.add_argument(
+        "--topics", nargs="+", metavar="TOPIC", help="only these topics (exact or '/r1/*')"
+    )
+    cat.add_argument("--json", action="store_true", help="one JSON object per line")
+    cat.set_defaults(func=run_cat)
     rec = lsub.add_parser(
         "recover",
         help="rewrite a truncated log (killed writer) into a valid one",
@@ -57,10 +78,24 @@ def run_info(args: argparse.Namespace) -> int:
     from hilnav.log.info import log_info
 
     try:
-        info = log_info(_existing(args.file))
+        info = log_info(_existing(args.file), scan=args.scan)
     except ValueError as exc:
         raise CliError(str(exc)) from None
     print(json.dumps(info.as_dict(), sort_keys=True) if args.json else info.table())
+    return 0
+
+
+def run_cat(args: argparse.Namespace) -> int:
+    from hilnav.log.cat import cat_lines
+
+    path = _existing(args.file)
+    try:
+        for text in cat_lines(path, args.topics, args.json):
+            print(text)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    except BrokenPipeError:  # `hilnav log cat run.mcap | head`: the reader has enough
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 

@@ -1,10 +1,12 @@
-"""``hilnav run [--config FILE]``: the robot daemon until SIGINT/SIGTERM (or --seconds)."""
+"""``hilnav run [--config FILE] [--foxglove [PORT]]``: the robot daemon until SIGINT/SIGTERM
+(or --seconds), optionally serving its topics live to Foxglove (:mod:`hilnav.live`)."""
 
 from __future__ import annotations
 
 import argparse
 import signal
 import sys
+from typing import Any
 
 from hilnav.config import ConfigError, load_config, summary
 from hilnav.errors import CliError
@@ -24,6 +26,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--log", help="MCAP file to write (default: [log] dir/<robot>-<UTC>.mcap)")
     p.add_argument("--seconds", type=float, default=None, help="stop after S seconds")
     p.add_argument("--quiet", action="store_true", help="do not print the config summary")
+    p.add_argument(
+        "--foxglove",
+        nargs="?",
+        type=int,
+        const=8765,
+        metavar="PORT",
+        help="serve the robot's topics live on the Foxglove WebSocket protocol, the same "
+        "channels as the log (default port 8765; 0 = any free port)",
+    )
+    p.add_argument(
+        "--foxglove-host",
+        default="127.0.0.1",
+        metavar="HOST",
+        help="address the live view listens on (default 127.0.0.1: this machine only)",
+    )
     p.set_defaults(func=run)
 
 
@@ -34,7 +51,12 @@ def run(args: argparse.Namespace) -> int:
         cfg = load_config(args.config)
     except ConfigError as exc:
         raise CliError(str(exc)) from None
-    daemon = Daemon(cfg, log_path=args.log)
+    sinks = (
+        {"live": live_bridge(args.foxglove, args.foxglove_host)}
+        if args.foxglove is not None
+        else {}
+    )
+    daemon = Daemon(cfg, log_path=args.log, sinks=sinks)
 
     def on_signal(signum, frame):  # noqa: ANN001
         daemon.request_stop()
@@ -48,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(summary(daemon.cfg), file=sys.stderr)
     print(f"hilnav run: {cfg.name} up; log {daemon.log_path}", flush=True)
+    if sinks:
+        print(f"hilnav run: live view on {sinks['live'].url} (Foxglove WebSocket)", flush=True)
     try:
         daemon.wait(args.seconds)
     finally:
@@ -59,3 +83,15 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     return 0
+
+
+def live_bridge(port: int, host: str) -> Any:
+    """A :class:`hilnav.live.LiveBridge` on ``host:port``, or a CliError saying why not."""
+    from hilnav.live import LiveBridge, LiveError
+
+    if not 0 <= port <= 65535:
+        raise CliError(f"--foxglove {port}: a port is 0..65535 (0: any free port)")
+    try:
+        return LiveBridge(port, host)
+    except LiveError as exc:
+        raise CliError(str(exc)) from None

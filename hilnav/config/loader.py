@@ -131,6 +131,17 @@ def _build(cls: type, data: dict[str, Any], path: str, src: str) -> Any:
     return _Loader(src).record(cls, data, path)
 
 
+def endpoint_problem(ep: str) -> str:
+    """What is wrong with a Zenoh endpoint ``PROTO/ADDRESS:PORT`` ("" if nothing)."""
+    proto, sep, rest = ep.partition("/")
+    if not sep or not rest or proto not in ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream"):
+        return 'expected PROTO/ADDRESS:PORT, e.g. "tcp/127.0.0.1:7447"'
+    port = rest.rsplit(":", 1)[-1].split("#", 1)[0]
+    if proto != "unixsock-stream" and (not port.isdigit() or int(port) > 65535):
+        return "the port must be 0..65535"
+    return ""
+
+
 def _cross_checks(cfg: RobotConfig, src: str) -> None:
     d = cfg.devices
     for dev, dc in d.sections():
@@ -153,18 +164,9 @@ def _cross_checks(cfg: RobotConfig, src: str) -> None:
     eps = [(f"zenoh.listen[{i}]", e) for i, e in enumerate(cfg.zenoh.listen)]
     eps += [(f"zenoh.connect[{i}]", e) for i, e in enumerate(cfg.zenoh.connect)]
     for where, ep in eps:
-        proto, sep, rest = ep.partition("/")
-        if (
-            not sep
-            or not rest
-            or proto not in ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream")
-        ):
-            raise ConfigError(
-                f'{src}: {where} = {ep!r}: expected PROTO/ADDRESS:PORT, e.g. "tcp/127.0.0.1:7447"'
-            )
-        port = rest.rsplit(":", 1)[-1].split("#", 1)[0]
-        if proto != "unixsock-stream" and (not port.isdigit() or int(port) > 65535):
-            raise ConfigError(f"{src}: {where} = {ep!r}: the port must be 0..65535")
+        problem = endpoint_problem(ep)
+        if problem:
+            raise ConfigError(f"{src}: {where} = {ep!r}: {problem}")
     try:
         cfg.zenoh.settings().to_zenoh()
     except ValueError as exc:

@@ -218,6 +218,7 @@ def _has_summary(path: str | Path) -> bool:
             f.seek(-8, os.SEEK_END)
             if f.read(8) != MAGIC:
                 return False
+            f.seek(0)  # the reader checks the leading magic where the stream is
             summary = make_reader(f).get_summary()
             return summary is not None and summary.statistics is not None
     except (OSError, McapError, struct.error, ValueError):

@@ -1,10 +1,13 @@
 """MCAP log writer: every message as hilnav JSON, plus Foxglove views, crash-safe.
 
-One channel per (topic, schema). A native message goes on its topic with schema
-``msgs.schema_name(cls)`` (``hilnav.<Class>``, JSON Schema from ``msgs.json_schema``; a
-message that is a Foxglove one, the map, gets Foxglove's official schema) and
-JSON encoding (``msgs.encode``); where a Foxglove schema fits, :mod:`hilnav.log.foxglove`
-adds a view on its own channel, so the Foxglove app draws the log with no plugin.
+One channel per (topic, schema). What a message becomes comes from
+:class:`hilnav.log.encoding.Encoder`: the native record on its topic with schema
+``msgs.schema_name(cls)`` (``hilnav.<Class>``, JSON Schema from ``msgs.json_schema``; the
+map, a Foxglove message itself, gets Foxglove's official schema) and JSON encoding
+(``msgs.encode``), and where a Foxglove schema fits a view on its own
+channel, so the Foxglove app draws the log with no plugin. The live bridge
+(:mod:`hilnav.live`) serves the same records; :meth:`LogWriter.write_records` takes
+records encoded once for both.
 
 Crash safety: the mcap library keeps the open chunk in memory until it reaches
 ``chunk_size``. Here the chunk is finished and written out (``Writer.flush``) whenever
@@ -20,19 +23,17 @@ Thread-safe: one lock around every call.
 
 from __future__ import annotations
 
-import json
 import os
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
-import msgs
-from hilnav.log import foxglove
-from hilnav.log.foxglove_schemas import SCHEMAS, official_schema
+from hilnav.log.encoding import Encoder, Record, dumps
 
 COMPRESSIONS = {
     "zstd": CompressionType.ZSTD,
@@ -43,10 +44,6 @@ METADATA_NAME = "hilnav"
 PROFILE = ""
 LIBRARY = "hilnav"
 _U64 = 2**64
-
-
-def _dumps(obj: Any) -> bytes:
-    return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode("utf-8")
 
 
 def _times(topic: str, log_time_ns: int, publish_time_ns: int | None) -> tuple[int, int]:
@@ -87,8 +84,7 @@ class LogWriter:
         self.path = Path(path)
         self._flush_ns = int(flush_every_s * 1e9)
         self._flush_s = float(flush_every_s)
-        self._views = foxglove_views
-        self._view_state = foxglove.ViewState()
+        self._encoder = Encoder(views=foxglove_views)
         self._lock = threading.Lock()
         self._stream = open(self.path, "wb")  # noqa: SIM115 - closed in close()
         self._writer = Writer(
@@ -107,7 +103,6 @@ class LogWriter:
         # lock, on a duplicate descriptor that close() cannot pull away under it.
         self._sync_fd = os.dup(self._stream.fileno()) if fsync and wall_clock else None
         self.messages_written = 0
-        self.views_skipped = 0  # views not written (non-finite values)
         self.bytes_written = 0
         if metadata:
             self.add_metadata(METADATA_NAME, metadata)
@@ -117,6 +112,11 @@ class LogWriter:
         if wall_clock:
             self._timer = threading.Thread(target=self._tick, name="mcap-flush", daemon=True)
             self._timer.start()
+
+    @property
+    def views_skipped(self) -> int:
+        """Views not written (odd messages, non-finite values)."""
+        return self._encoder.views_skipped
 
     # -- context manager ---------------------------------------------------------------
     def __enter__(self) -> LogWriter:
@@ -151,7 +151,7 @@ class LogWriter:
         cid = self._channels.get(key)
         if cid is None:
             if isinstance(schema, dict):
-                data, enc = _dumps(schema), schema_encoding
+                data, enc = dumps(schema), schema_encoding
             elif isinstance(schema, bytes | bytearray) and schema:
                 data, enc = bytes(schema), schema_encoding
             else:
@@ -184,35 +184,23 @@ class LogWriter:
         self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None
     ) -> None:
         """Log ``msg`` (a msgs dataclass) on ``topic`` and its Foxglove views."""
-        cls = type(msg)
-        name = msgs.schema_name(cls)
-        data = msgs.encode(msg)
-        log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)
+        _times(topic, log_time_ns, publish_time_ns)  # refuse bad times before encoding
+        self.write_records(self._encoder.encode(topic, msg), log_time_ns, publish_time_ns)
+
+    def write_records(
+        self, records: Sequence[Record], log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None:
+        """Log the records of one message (:meth:`hilnav.log.encoding.Encoder.encode`)."""
+        if not records:
+            return
+        log_ns, pub_ns = _times(records[0].topic, log_time_ns, publish_time_ns)
         with self._lock:
             self._check_open()
-            cid = self._channels.get((topic, name, "json"))
-            if cid is None:
-                cid = self._channel_id(topic, name, official_schema(name) or msgs.json_schema(cls))
-            self._add(cid, data, log_ns, pub_ns)
-            if self._views:
-                self._write_views(topic, msg, log_ns, pub_ns)
-
-    def _write_views(self, topic: str, msg: Any, log_ns: int, pub_ns: int) -> None:
-        try:
-            views = foxglove.views(topic, msg, self._view_state)
-        except (TypeError, ValueError, AttributeError):
-            self.views_skipped += 1  # an odd message: the native record is what matters
-            return
-        for vtopic, vschema, body in views:
-            try:
-                data = _dumps(body)
-            except ValueError:  # NaN/inf (a diverged filter): Foxglove JSON cannot hold it
-                self.views_skipped += 1
-                continue
-            vcid = self._channels.get((vtopic, vschema, "json"))
-            if vcid is None:
-                vcid = self._channel_id(vtopic, vschema, SCHEMAS.get(vschema))
-            self._add(vcid, data, log_ns, pub_ns)
+            for r in records:
+                cid = self._channels.get((r.topic, r.schema_name, "json"))
+                if cid is None:
+                    cid = self._channel_id(r.topic, r.schema_name, r.schema())
+                self._add(cid, r.data, log_ns, pub_ns)
 
     def write_encoded(
         self,

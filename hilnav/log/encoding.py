@@ -1,0 +1,107 @@
+"""What one message becomes on the log's channels, and the sinks that take it.
+
+:class:`Encoder` turns ``(topic, msg)`` into :class:`Record` items: first the native
+record (topic ``/<robot>/<topic>``, schema ``hilnav.<Class>`` whose JSON Schema is
+``msgs.json_schema``, or Foxglove's official one for a message that is a Foxglove message
+such as the map's ``foxglove.Grid``; payload ``msgs.encode``), then the Foxglove views of
+:func:`hilnav.log.foxglove.views` (JSON, schemas from :mod:`hilnav.log.foxglove_schemas`).
+The MCAP writer (:class:`hilnav.log.writer.LogWriter`) and the live Foxglove bridge
+(:class:`hilnav.live.LiveBridge`) both write these records, so a live client and a log
+file see the same channels, schemas and bytes.
+
+A :class:`Sink` takes the records of one message with its log and publish times; the
+daemon encodes each message once and hands the records to each of its sinks.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import msgs
+from hilnav.log import foxglove
+from hilnav.log.foxglove_schemas import SCHEMAS, official_schema
+
+
+def dumps(obj: Any) -> bytes:
+    """Compact JSON bytes; ValueError on NaN or infinity (JSON cannot hold them)."""
+    return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+def stamp_of(msg: Any) -> int | None:
+    """The message's ``stamp_ns`` as a publish time, or None when it has none (or one that
+    is not a positive int64)."""
+    stamp = getattr(msg, "stamp_ns", None)
+    return stamp if isinstance(stamp, int) and 0 < stamp < 2**63 else None
+
+
+@dataclass(frozen=True, slots=True)
+class Record:
+    """One encoded payload on one channel (JSON message encoding).
+
+    ``cls`` is the msgs class of a native record, None for a Foxglove view."""
+
+    topic: str
+    schema_name: str
+    data: bytes
+    cls: type | None = None
+
+    def schema(self) -> dict[str, Any] | None:
+        """The JSON Schema of the channel (None: a view schema hilnav has no schema for)."""
+        if self.cls is not None:  # a hilnav message; the map is a foxglove.Grid itself
+            return official_schema(self.schema_name) or msgs.json_schema(self.cls)
+        return SCHEMAS.get(self.schema_name)
+
+    @property
+    def is_view(self) -> bool:
+        return self.cls is None
+
+
+class Encoder:
+    """``encode(topic, msg)``: the native record and its Foxglove views (thread-safe).
+
+    Keeps the views' state (the latest odometry pose, for map->odom), so one encoder
+    should see one stream of messages in order. A view that cannot be made (an odd
+    message, NaN in a diverged filter) is counted in ``views_skipped`` and left out; the
+    native record is what matters. An unencodable native message raises."""
+
+    def __init__(self, views: bool = True) -> None:
+        self.views = views
+        self.views_skipped = 0
+        self._state = foxglove.ViewState()
+        self._lock = threading.Lock()
+
+    def encode(self, topic: str, msg: Any) -> list[Record]:
+        cls = type(msg)
+        out = [Record(topic, msgs.schema_name(cls), msgs.encode(msg), cls)]
+        if self.views:
+            with self._lock:
+                out.extend(self._views(topic, msg))
+        return out
+
+    def _views(self, topic: str, msg: Any) -> list[Record]:
+        try:
+            views = foxglove.views(topic, msg, self._state)
+        except (TypeError, ValueError, AttributeError):
+            self.views_skipped += 1
+            return []
+        out = []
+        for vtopic, vschema, body in views:
+            try:
+                out.append(Record(vtopic, vschema, dumps(body)))
+            except ValueError:  # NaN/inf: Foxglove JSON cannot hold it
+                self.views_skipped += 1
+        return out
+
+
+class Sink(Protocol):
+    """Where encoded records go: the MCAP log, the live Foxglove bridge."""
+
+    def write_records(
+        self, records: Sequence[Record], log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None: ...
+
+    def close(self) -> None: ...
