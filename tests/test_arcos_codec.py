@@ -181,3 +181,16 @@ def test_garbage_never_crashes_and_resyncs(noise, cuts):
         pos = max(pos, cut)
     # Garbage may swallow at most the first packet (a stray FA FB may claim its bytes).
     assert 1 <= len([m for m in got if isinstance(m, RobotOdometry)]) <= 2
+
+
+def test_corrupted_count_does_not_hold_back_the_next_packets():
+    """COUNT 0xF0 claims 243 bytes; each following SIP is returned by the feed completing it."""
+    bad = bytearray(_sip_packet())
+    bad[2] = 0xF0
+    c = ArcosCodec()
+    assert c.feed(bytes(bad), 0) == []
+    for k in range(3):
+        (m,) = c.feed(_sip_packet(XPOS=110 + k), 10_000_000 * (k + 1))
+        assert m.stamp_ns == 10_000_000 * (k + 1)
+    assert c.stats.resyncs == 1 and c.stats.bytes_skipped == len(bad)
+    assert c.stats.frames_ok == 3 and c.stats.frames_lost == 0  # ARCOS cannot count losses
