@@ -30,14 +30,23 @@ def wall_clock_ns() -> int:
 
 @dataclass
 class CodecStats:
-    """Counters a codec keeps about its input stream."""
+    """Counters a codec keeps about its input stream.
+
+    ``frames_ok`` counts frames that passed the framing checks (sync, length, checksum);
+    ``malformed`` counts those among them whose content could not be turned into a message
+    (too short for their type, a channel count other than the configured one, a date that
+    cannot be). ``frames_lost`` counts gaps in sequence numbers, where the protocol has
+    them; ``duplicates`` counts frames repeating the previous one (same sequence number and
+    content), which are dropped and not in ``frames_ok``.
+    """
 
     frames_ok: int = 0
     bad_checksums: int = 0
     resyncs: int = 0
     bytes_skipped: int = 0
-    frames_lost: int = 0  # gaps in sequence numbers, where the protocol has them
-    malformed: int = 0  # frames with a good checksum whose content could not be decoded
+    frames_lost: int = 0
+    malformed: int = 0
+    duplicates: int = 0
 
 
 class Codec(Protocol):
@@ -92,6 +101,8 @@ class LinkDiagnostics:
             resyncs=s.resyncs,
             bytes_skipped=s.bytes_skipped,
             frames_lost=self._frames_lost(s),
+            malformed=s.malformed,
+            duplicates=s.duplicates,
             reconnects=self.reconnects,  # type: ignore[attr-defined]
             last_seen_ns=self._last_seen_ns,  # type: ignore[attr-defined]
             rate_hz=rate,

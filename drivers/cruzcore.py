@@ -6,7 +6,8 @@ The codec hunts ``FF FF`` and accepts a frame only if its checksum holds (a rate
 byte may be FF, so a false header is skipped one byte at a time). Angles are unwrapped
 across +-180 deg so the heading is continuous. Commands are ``$<body>*<hex>`` with the SUM
 (mod 256) of the body bytes: ``$MIB,RESET*87`` re-zeroes the angle, ``$MIA,...`` sets baud
-and rate (empty fields keep their value).
+and rate (empty fields keep their value). The packet has no sequence number, so a packet
+lost on the line cannot be counted (``frames_lost`` stays 0).
 """
 
 from __future__ import annotations
@@ -113,7 +114,11 @@ def _int_or_none(s: str) -> int | None:
 
 
 class CommandParser:
-    """Splits a byte stream into command lines (for the fake); garbage is counted."""
+    """Splits a byte stream into command lines (for the fake); garbage is counted.
+
+    A command ends at LF, or at the ``$`` of the next command when its LF was lost, so a
+    command without its line end costs at most itself, never the command after it.
+    """
 
     MAX_LINE = 80
 
@@ -134,7 +139,10 @@ class CommandParser:
                 self.stats.bytes_skipped += start
                 del self._buf[:start]
             end = self._buf.find(b"\n")
-            if end < 0:
+            nxt = self._buf.find(b"$", 1)
+            if nxt >= 0 and (end < 0 or nxt < end):
+                end = nxt - 1  # its LF was lost: the next command starts here
+            elif end < 0:
                 if len(self._buf) > self.MAX_LINE:
                     self.stats.bytes_skipped += 1
                     del self._buf[:1]

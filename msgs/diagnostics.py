@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 class DeviceDiagnostics:
     """Counters of one device link since the driver started.
 
-    frames_ok / bad_checksums / resyncs / bytes_skipped come from the codec;
+    frames_ok / bad_checksums / resyncs / bytes_skipped / frames_lost / malformed /
+    duplicates come from the codec (drivers.base.CodecStats says what each counts);
     reconnects and last_error from the driver; last_seen_ns is the stamp of the last
     good frame (0 if none); rate_hz the good-frame rate over the last report period.
     """
@@ -26,6 +27,8 @@ class DeviceDiagnostics:
     last_seen_ns: int = 0
     rate_hz: float = 0.0
     last_error: str = ""
+    malformed: int = 0
+    duplicates: int = 0
 
 
 @dataclass(frozen=True, slots=True)

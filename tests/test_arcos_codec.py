@@ -199,3 +199,16 @@ def test_moving_comes_from_the_velocities_when_every_sip_says_stopped():
     codec = ArcosCodec()
     got = [m.moving for m in codec.feed(b"".join(stream), 1) if hasattr(m, "moving")]
     assert got == [True, True, False, True]
+
+
+def test_corrupted_count_does_not_hold_back_the_next_packets():
+    """COUNT 0xF0 claims 243 bytes; each following SIP is returned by the feed completing it."""
+    bad = bytearray(_sip_packet())
+    bad[2] = 0xF0
+    c = ArcosCodec()
+    assert c.feed(bytes(bad), 0) == []
+    for k in range(3):
+        (m,) = c.feed(_sip_packet(XPOS=110 + k), 10_000_000 * (k + 1))
+        assert m.stamp_ns == 10_000_000 * (k + 1)
+    assert c.stats.resyncs == 1 and c.stats.bytes_skipped == len(bad)
+    assert c.stats.frames_ok == 3 and c.stats.frames_lost == 0  # ARCOS cannot count losses

@@ -96,3 +96,16 @@ def test_ff_bytes_inside_a_packet_do_not_confuse_the_hunt():
     out = c.feed(b"\xff" + pkt + pkt[:3] + pkt, 0)
     assert len(out) == 2 and c.stats.frames_ok == 2
     assert c.stats.bytes_skipped == 4
+
+
+def test_a_command_that_lost_its_lf_does_not_swallow_the_next():
+    cfg = config_command(rate_hz=50)
+    for lost in (cfg[:-1], cfg[:-2]):  # LF lost; CR and LF lost
+        p = CommandParser()
+        cmds = p.feed(lost + reset_command())
+        assert [c.kind for c in cmds] == ["config", "reset"] and cmds[0].rate_hz == 50
+        assert p.stats.bad_checksums == 0
+    p = CommandParser()
+    cut = cfg[:10]  # cut short: it is lost, the next one is kept
+    assert [c.kind for c in p.feed(cut + reset_command())] == ["reset"]
+    assert p.stats.bad_checksums == 1

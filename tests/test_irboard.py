@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from drivers.base import LinkDiagnostics
 from drivers.irboard import (
     IrBoardConfig,
     IrCanCodec,
@@ -133,3 +134,76 @@ def test_can_codec_ignores_foreign_frames_and_counts_bad_dlc():
     scan = codec.feed_frame(arb, data, 1)
     assert scan is not None and scan.seq == 3 and len(scan.ranges_m) == 6
     assert codec.feed_frame(arb, data[:4], 2) is None and codec.stats.bad_checksums == 1
+
+
+def test_a_command_split_across_reads_is_decoded_once_whole():
+    """A SET_RATE command arriving in pieces is decoded when its last byte arrives."""
+    cmd = set_rate_command(1, 50)
+    for cut in range(1, len(cmd)):
+        d = SerialFrameDecoder(commands=True)
+        assert d.feed(cmd[:cut]) == []
+        (got,) = d.feed(cmd[cut:])
+        assert got.rate_hz == 50 and d.stats.bad_checksums == 0 and d.stats.bytes_skipped == 0
+
+
+def test_a_bogus_header_does_not_hold_back_the_frame_inside_it():
+    """A corrupted channel count (8 instead of 1) is skipped as soon as a good frame is whole."""
+    good = [encode_sample(RawSample(1, k, 10, (5,))) for k in range(2)]
+    bad = bytearray(good[0])
+    bad[5] = 8  # announces 25 bytes; the next 11-byte frame is complete first
+    d = SerialFrameDecoder()
+    got = d.feed(bytes(bad) + good[1])
+    assert [s.seq for s in got] == [1] and d.stats.resyncs == 1
+
+
+def test_duplicated_frames_are_counted_not_lost():
+    frames = [encode_sample(RawSample(1, k, 10, (5 + k,))) for k in (1, 2, 2, 3)]
+    d = SerialFrameDecoder()
+    assert [s.seq for s in d.feed(b"".join(frames))] == [1, 2, 3]
+    assert d.stats.duplicates == 1 and d.stats.frames_lost == 0 and d.stats.frames_ok == 3
+    arb, data = pack_sample(RawSample(2, 7, 10, (600,) * 6))
+    _, data8 = pack_sample(RawSample(2, 8, 10, (600,) * 6))
+    codec = IrCanCodec(IrBoardConfig(board_id=2))
+    scans = [codec.feed_frame(arb, x, 0) for x in (data, data, data8)]
+    assert [s is not None for s in scans] == [True, False, True]
+    assert codec.stats.duplicates == 1 and codec.stats.frames_lost == 0
+
+
+def test_lost_can_frames_are_counted_from_the_4_bit_sequence():
+    codec = IrCanCodec(IrBoardConfig(board_id=2))
+    for seq in (14, 15, 2, 3):  # 0 and 1 lost across the wrap
+        codec.feed_frame(*pack_sample(RawSample(2, seq, 10, (600 + seq,) * 6)), 0)
+    assert codec.stats.frames_lost == 2 and codec.stats.frames_ok == 4
+    # the same sequence number with other data: a whole turn of the counter, 15 lost
+    codec.feed_frame(*pack_sample(RawSample(2, 3, 10, (700,) * 6)), 0)
+    assert codec.stats.frames_lost == 17 and codec.stats.duplicates == 0
+
+
+def test_a_short_frame_of_another_channel_count_is_counted_malformed():
+    """A DLC-7 frame fits 5 channels of 10 bits: a good frame, but not this 6-channel board's."""
+    codec = IrCanCodec(IrBoardConfig(board_id=2))
+    arb, data = pack_sample(RawSample(2, 3, 10, (600,) * 6))
+    assert codec.feed_frame(arb, data[:7], 0) is None
+    assert codec.stats.malformed == 1
+    serial = IrSerialCodec(IrBoardConfig(board_id=1))
+    assert serial.feed(encode_sample(RawSample(1, 0, 10, (600,) * 5)), 0) == []
+    assert serial.stats.malformed == 1
+    can = IrCanCodec()
+    assert can.feed(b"\x00\x03", 0) == [] and can.stats.malformed == 1  # a cut logged frame
+
+
+class _Link(LinkDiagnostics):
+    device, connected, reconnects, last_error, _last_seen_ns = "ir", True, 0, "", 0
+
+    def __init__(self, codec: IrCanCodec) -> None:
+        self.codec = codec
+
+
+def test_diagnostics_show_malformed_and_duplicate_frames():
+    codec = IrCanCodec(IrBoardConfig(board_id=2))
+    arb, data = pack_sample(RawSample(2, 3, 10, (600,) * 6))
+    _, data4 = pack_sample(RawSample(2, 4, 10, (600,) * 6))
+    for frame in (data, data, data4[:7]):
+        codec.feed_frame(arb, frame, 0)
+    diag = _Link(codec).diagnostics(0)
+    assert (diag.frames_ok, diag.duplicates, diag.malformed, diag.frames_lost) == (2, 1, 1, 0)

@@ -8,6 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivers.nmea import Datum, NmeaCodec, build, xor_checksum
+from drivers.nmea.epoch import EpochCombiner
+from drivers.nmea.sentences import ZDA
 from drivers.nmea.writer import epoch_sentences
 from msgs import GpsFix
 
@@ -139,3 +141,39 @@ def test_corruption_never_crashes_and_resyncs_within_one_sentence(noise, cut, ch
     good = [f for f in fixes if f.lat_deg in (10.5, 11.0)]
     assert [f.lat_deg for f in good][-2:] == [10.5, 11.0]
     assert good[-1].mode == 3 and good[-1].time_utc == "2026-11-22T20:00:02.000Z"
+
+
+def test_zda_past_year_9999_is_counted_not_raised():
+    codec = NmeaCodec()
+    codec.feed(b"$GPZDA,235960.00,31,12,9999,00,00*6C\r\n", 0)
+    assert codec.flush() == [] and codec.malformed == 1 and codec.stats.malformed == 1
+    # a record past year 9999 reaching the epoch combiner gives a fix without a time
+    combiner = EpochCombiner()
+    combiner.add("GP", "ZDA", ZDA(86_400_000, (9999, 12, 31)), 0)
+    (fix,) = combiner.flush()
+    assert fix.time_utc == ""
+
+
+def test_zda_with_an_implausible_year_gives_no_date():
+    """A 2-digit year (49) is not guessed into a century: the sentence is malformed."""
+    gga = build("GPGGA,120000.00,4500.0000,N,00700.0000,E,1,08,1.0,100.0,M,,M,,")
+    for year in ("49", "0049", "1899", "2201", "20x6"):
+        codec = NmeaCodec()
+        zda = build(f"GPZDA,120000.00,01,01,{year},00,00")
+        (fix,) = _run(codec, gga + zda)
+        assert fix.time_utc == "" and codec.stats.malformed == 1, year
+    (fix,) = _run(NmeaCodec(), gga + build("GPZDA,120000.00,01,01,2049,00,00"))
+    assert fix.time_utc == "2049-01-01T12:00:00.000Z"
+
+
+def test_a_sentence_of_the_maximum_length_split_between_cr_and_lf_is_kept():
+    body = "GPTXT,01,01,02,"
+    body += "X" * (128 - len(build(body)) + 2)  # 128 bytes from '$' to the checksum
+    line = build(body)
+    assert len(line) == 128 + 2
+    codec = NmeaCodec()
+    codec.feed(line[:-1], 0)
+    codec.feed(line[-1:], 1)
+    assert codec.stats.frames_ok == 1 and codec.framer.overlong == 0 and codec.ignored == 1
+    codec.feed(build(body + "X")[:-1], 2)  # one byte over: dropped
+    assert codec.framer.overlong == 1

@@ -6,6 +6,11 @@ accumulated in the robot's own frame, and the heading difference is wrapped to
 (-pi, pi]. The first SIP only sets the reference (pose 0 there); :meth:`reset_reference`
 does it again (after SETO or a reconnect). Non-SIP packets other than CONFIG and
 ENCODER are passed through as :class:`ArcosPacket` for the driver (sync replies, reset).
+
+ARCOS has no sequence numbers, so a packet lost on the line leaves no trace in the stream
+and ``stats.frames_lost`` stays 0; corruption shows in ``bad_checksums``, ``resyncs`` and
+``bytes_skipped``, and a packet whose checksum holds but whose content does not fit its ID
+(a SIP too short) in ``malformed``.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from drivers.arcos.commands import Cmd, encode_command, vel2_argument
 from drivers.arcos.packet import ArcosPacket
 from drivers.arcos.packets import RESET_ID, SIP_MOVING, SIP_STOPPED, decode_sync2
 from drivers.arcos.params import P3DX_SH, RobotParams, params_for
-from drivers.base import Clock, CodecStats, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
+from drivers.base import Clock, DeviceError, LinkDiagnostics, RawHook, wall_clock_ns
 from drivers.reconnect import Reconnect, ReconnectingLink, local_path
 from drivers.transport import FileTransport, LinkLost, Transport, open_transport
 from msgs import RobotInfo, RobotOdometry, VelocityCommand
@@ -280,9 +280,6 @@ class ArcosDriver(LinkDiagnostics, ReconnectingLink):
             if self._t is not None:
                 self._t.close()
                 self._t = None
-
-    def _frames_lost(self, stats: CodecStats) -> int:
-        return stats.malformed  # ARCOS has no sequence numbers: packets that failed to decode
 
 
 __all__ = ["ArcosDriver", "ArcosOptions", "SIP_MOVING"]

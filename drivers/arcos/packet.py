@@ -6,6 +6,13 @@ COUNT counts the bytes after it (ID, data and the two checksum bytes). The check
 high byte first. The parser hunts FA then FB, drops a packet with a bad checksum, and
 like ARIA's ArRobotPacketReceiver drops a partial packet whose bytes arrive more than
 100 ms apart; every byte it cannot use is counted.
+
+A corrupted COUNT would make it wait for bytes that belong to the next packets (up to 252
+bytes, nine SIPs at 9600 baud). So while a packet is incomplete, the parser looks for a
+later header inside it that starts a complete packet with a good checksum: if there is
+one, the pending packet was bogus and the parser skips to it (a resync), so each packet is
+returned by the ``feed`` that completes it. ARCOS packets carry no sequence number: a
+packet lost on the line cannot be counted (``frames_lost`` stays 0).
 """
 
 from __future__ import annotations
@@ -100,7 +107,13 @@ class PacketParser:
                 del buf[:2]
                 continue
             if len(buf) < 3 + count:
-                break
+                j = _later_packet(buf)
+                if j < 0:
+                    break  # wait for the rest of the packet
+                self.stats.bytes_skipped += j  # the pending COUNT was bogus
+                self.stats.resyncs += 1
+                del buf[:j]
+                continue
             body = bytes(buf[3 : 3 + count - 2])
             got = (buf[3 + count - 2] << 8) | buf[3 + count - 1]
             if checksum(body) != got:
@@ -112,3 +125,18 @@ class PacketParser:
             self.stats.frames_ok += 1
             out.append(ArcosPacket(body[0], body[1:], stamp_ns))
         return out
+
+
+def _later_packet(buf: bytearray) -> int:
+    """Start of the first complete packet with a good checksum after the pending one's
+    header (``buf`` starts with a header), or -1."""
+    j = buf.find(SYNC, 2)
+    n = len(buf)
+    while j >= 0 and j + 3 <= n:
+        count = buf[j + 2]
+        end = j + 3 + count
+        good = 3 <= count <= MAX_COUNT and end <= n
+        if good and checksum(bytes(buf[j + 3 : end - 2])) == (buf[end - 2] << 8) | buf[end - 1]:
+            return j
+        j = buf.find(SYNC, j + 1)
+    return -1

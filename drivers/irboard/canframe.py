@@ -91,26 +91,35 @@ def unpack_command(arb_id: int, data: bytes) -> tuple[int, int] | None:
 
 @dataclass
 class CanSampleDecoder:
-    """Frames -> :class:`RawSample` for one board; foreign or malformed frames are counted."""
+    """Frames -> :class:`RawSample` for one board; foreign or malformed frames are counted.
+
+    The 4-bit sequence counts lost frames: a gap of k means k frames lost (mod 16, so 16
+    lost in a row go unseen). A frame equal to the previous one (same sequence number, same
+    data: a retransmission seen twice) is a duplicate, counted and dropped, not 15 lost.
+    """
 
     board_id: int
     adc_bits: int = 10
 
     def __post_init__(self) -> None:
         self.stats = CodecStats()
-        self._last: int | None = None
+        self._last: tuple[int, bytes] | None = None
 
     def feed_frame(self, arb_id: int, data: bytes, is_extended: bool = False) -> RawSample | None:
         if is_extended or arb_id != SAMPLE_ID_BASE + self.board_id:
             return None  # someone else's frame on a shared bus: not an error
-        s = unpack_sample(arb_id, bytes(data), self.adc_bits)
+        data = bytes(data)
+        s = unpack_sample(arb_id, data, self.adc_bits)
         if s is None:
             self.stats.bytes_skipped += len(data)
             self.stats.bad_checksums += 1
             return None
         if self._last is not None:
-            self.stats.frames_lost += (s.seq - self._last - 1) & 0xF
-        self._last = s.seq
+            if self._last == (s.seq, data):
+                self.stats.duplicates += 1
+                return None
+            self.stats.frames_lost += (s.seq - self._last[0] - 1) & 0xF
+        self._last = (s.seq, data)
         self.stats.frames_ok += 1
         return s
 

@@ -1,4 +1,10 @@
-"""IR board codecs: serial bytes or CAN frames -> :class:`msgs.IrScan`."""
+"""IR board codecs: serial bytes or CAN frames -> :class:`msgs.IrScan`.
+
+A good frame of the board whose channel count or resolution differ from the board's
+configuration (a short CAN frame can fit a smaller channel count) gives no scan and is
+counted in ``stats.malformed``, which the diagnostics publish. Both formats carry a
+sequence number, so lost frames are counted (``stats.frames_lost``).
+"""
 
 from __future__ import annotations
 
@@ -23,7 +29,9 @@ class IrSerialCodec:
             if s.board_id != self.config.board_id:
                 continue
             scan = self.converter(s, stamp_ns)
-            if scan is not None:
+            if scan is None:
+                self.stats.malformed += 1
+            else:
                 out.append(scan)
         return out
 
@@ -41,12 +49,19 @@ class IrCanCodec:
         self, arb_id: int, data: bytes, stamp_ns: int, is_extended: bool = False
     ) -> IrScan | None:
         s = self.decoder.feed_frame(arb_id, data, is_extended)
-        return None if s is None else self.converter(s, stamp_ns)
+        if s is None:
+            return None
+        scan = self.converter(s, stamp_ns)
+        if scan is None:
+            self.stats.malformed += 1
+        return scan
 
     def feed(self, raw: bytes, stamp_ns: int) -> list[IrScan]:
         """One logged frame (:func:`drivers.irboard.canframe.pack_raw_frame`) -> scans."""
         frame = unpack_raw_frame(raw)
         if frame is None:
+            self.stats.malformed += 1
+            self.stats.bytes_skipped += len(raw)
             return []
         scan = self.feed_frame(frame[0], frame[1], stamp_ns, frame[2])
         return [] if scan is None else [scan]

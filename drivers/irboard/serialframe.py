@@ -96,14 +96,21 @@ def set_rate_command(board_id: int, rate_hz: int) -> bytes:
 
 
 class SerialFrameDecoder:
-    """Bytes -> :class:`RawSample` (data frames) or :class:`BoardCommand` (``commands=True``)."""
+    """Bytes -> :class:`RawSample` (data frames) or :class:`BoardCommand` (``commands=True``).
+
+    A header whose frame is still incomplete is waited for, unless a complete frame with a
+    good CRC already starts inside it: then the header was bogus (a corrupted length or
+    channel count) and the decoder skips to that frame rather than hold it back. A data
+    frame repeating the previous one of its board (same sequence number and counts) is a
+    duplicate: counted in ``duplicates`` and dropped; sequence gaps count ``frames_lost``.
+    """
 
     def __init__(self, commands: bool = False) -> None:
         self.stats = CodecStats()
         self._buf = bytearray()
         self._sync = SYNC_CMD if commands else SYNC_DATA
         self._commands = commands
-        self._last_seq: dict[int, int] = {}
+        self._last: dict[int, tuple[int, tuple[int, ...]]] = {}
 
     def feed(self, data: bytes) -> list:
         buf = self._buf
@@ -118,38 +125,45 @@ class SerialFrameDecoder:
                 j = buf.find(sync, i + 1)
                 if j < 0:
                     j = n - 1 if buf[n - 1] == sync[0] else n
-                self.stats.bytes_skipped += j - i
-                if not in_skip:
-                    self.stats.resyncs += 1
-                    in_skip = True
+                in_skip = self._skip(j - i, in_skip)
                 i = j
                 continue
             size = self._frame_size(buf, i, n)
             if size == 0:  # need more bytes
                 break
+            if size > n - i:
+                j = self._later_frame(buf, i, n)
+                if j < 0:  # wait for the rest of the frame
+                    break
+                in_skip = self._skip(j - i, in_skip)  # the pending header was bogus
+                i = j
+                continue
             if size > 0:
-                frame = bytes(buf[i + 2 : i + size])
-                if crc16_ccitt(frame[:-2]) == int.from_bytes(frame[-2:], "big"):
-                    msg = self._decode(frame)
-                    if msg is not None:
+                msg = self._checked(buf, i, size)
+                if msg is not None:
+                    if self._keep(msg):
                         out.append(msg)
-                        self.stats.frames_ok += 1
-                        in_skip = False
-                        i += size
-                        continue
+                    in_skip = False
+                    i += size
+                    continue
                 self.stats.bad_checksums += 1
             # implausible header or bad CRC: step over one byte and hunt again
-            self.stats.bytes_skipped += 1
-            if not in_skip:
-                self.stats.resyncs += 1
-                in_skip = True
+            in_skip = self._skip(1, in_skip)
             i += 1
         if i:
             del buf[:i]
         return out
 
+    def _skip(self, count: int, in_skip: bool) -> bool:
+        """Count ``count`` skipped bytes (and a resync when a skipped run starts)."""
+        self.stats.bytes_skipped += count
+        if not in_skip:
+            self.stats.resyncs += 1
+        return True
+
     def _frame_size(self, buf: bytearray, i: int, n: int) -> int:
-        """Total frame length, 0 if the header is incomplete, -1 if implausible."""
+        """Total length the header at ``i`` announces (the frame may still be incomplete);
+        0 if the header itself is incomplete, -1 if it is implausible."""
         if self._commands:
             if n - i < 5:
                 return 0
@@ -159,20 +173,42 @@ class SerialFrameDecoder:
         ch, bits = buf[i + 5], buf[i + 6]
         if not 1 <= ch <= MAX_CHANNELS or bits not in (10, 12):
             return -1
-        size = 9 + 2 * ch
-        return size if n - i >= size else 0
+        return 9 + 2 * ch
 
-    def _decode(self, frame: bytes) -> RawSample | BoardCommand | None:
+    def _later_frame(self, buf: bytearray, i: int, n: int) -> int:
+        """Start of the first complete, good frame after ``i`` (inside the pending one), or -1."""
+        j = buf.find(self._sync, i + 1)
+        while j >= 0:
+            size = self._frame_size(buf, j, n)
+            if 0 < size <= n - j and self._checked(buf, j, size) is not None:
+                return j
+            j = buf.find(self._sync, j + 1)
+        return -1
+
+    def _checked(self, buf: bytearray, i: int, size: int) -> RawSample | BoardCommand | None:
+        """The message of the complete frame at ``i`` if its CRC and content hold, else None."""
+        frame = bytes(buf[i + 2 : i + size])
+        if crc16_ccitt(frame[:-2]) != int.from_bytes(frame[-2:], "big"):
+            return None
         if self._commands:
             return BoardCommand(frame[0], frame[1], frame[3 : 3 + frame[2]])
         board, seq, ch, bits = _HDR.unpack_from(frame)
         counts = struct.unpack_from(f"<{ch}H", frame, _HDR.size)
         if max(counts) >= 1 << bits:
             return None
-        last = self._last_seq.get(board)
-        if last is not None:
-            gap = (seq - last - 1) & 0xFFFF
-            if gap < 0x8000:
-                self.stats.frames_lost += gap
-        self._last_seq[board] = seq
         return RawSample(board, seq, bits, counts)
+
+    def _keep(self, msg: RawSample | BoardCommand) -> bool:
+        """Count a good frame: sequence gaps, duplicates (dropped: False)."""
+        if isinstance(msg, RawSample):
+            last = self._last.get(msg.board_id)
+            if last == (msg.seq, msg.counts):
+                self.stats.duplicates += 1
+                return False
+            if last is not None:
+                gap = (msg.seq - last[0] - 1) & 0xFFFF
+                if gap < 0x8000:
+                    self.stats.frames_lost += gap
+            self._last[msg.board_id] = (msg.seq, msg.counts)
+        self.stats.frames_ok += 1
+        return True

@@ -1,11 +1,14 @@
 """NMEA byte stream -> sentences -> :class:`msgs.GpsFix` (the GPS codec).
 
 Framing: a sentence starts at ``$`` and ends at LF (CR optional). A line is dropped and
-counted when it is overlong (``max_line`` bytes, default 128: Skytraq's PSTI sentences are
-108), holds non-printable bytes (binary noise), or fails the XOR checksum; a line with no
-checksum at all is accepted only with ``require_checksum=False``. A sentence cut short by
-the start of the next (``$GPGGA,12$GPRMC,...``) is dropped and the next one kept, so the
-codec is back in step within one sentence. Bytes outside sentences are skipped and counted.
+counted when it is overlong (over ``max_line`` bytes from ``$`` to the checksum, CR and LF
+not counted; default 128: Skytraq's PSTI sentences are 108), holds non-printable bytes
+(binary noise), or fails the XOR checksum; a line with no checksum at all is accepted only
+with ``require_checksum=False``. A sentence cut short by the start of the next
+(``$GPGGA,12$GPRMC,...``) is dropped and the next one kept, so the codec is back in step
+within one sentence. Bytes outside sentences are skipped and counted. A sentence of a
+supported type whose fields do not parse is counted in ``stats.malformed``. NMEA has no
+sequence numbers: a lost sentence cannot be counted.
 """
 
 from __future__ import annotations
@@ -44,11 +47,15 @@ class NmeaFramer:
             pos = nl + 1
         if pos:
             del buf[:pos]
-        if len(buf) > self.max_line:
+        # A pending CR is the end of the line, not part of it: it does not count.
+        limit = self.max_line + (buf[-1:] == b"\r")
+        if len(buf) > limit:
             # no end of line in sight: keep only from the last '$' if it may still fit
             start = buf.rfind(b"$")
-            cut = start if start >= 0 and len(buf) - start <= self.max_line else len(buf)
-            self.overlong += 1
+            fits = start >= 0 and len(buf) - start <= limit
+            if not fits:
+                self.overlong += 1
+            cut = start if fits else len(buf)
             self.stats.bytes_skipped += cut
             self.stats.resyncs += 1
             del buf[:cut]
@@ -120,7 +127,11 @@ class NmeaCodec:
         self.combiner = EpochCombiner(datum, rollover_before_year)
         self.stats = self.framer.stats
         self.ignored = 0  # well-formed sentences of types we do not use (GSV, GLL, ...)
-        self.malformed = 0  # supported types whose fields do not parse
+
+    @property
+    def malformed(self) -> int:
+        """Sentences of supported types whose fields do not parse (``stats.malformed``)."""
+        return self.stats.malformed
 
     def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix]:
         out: list[GpsFix] = []
@@ -134,7 +145,7 @@ class NmeaCodec:
             except (ValueError, IndexError):
                 rec = None
             if rec is None:
-                self.malformed += 1
+                self.stats.malformed += 1
                 continue
             out.extend(self.combiner.add(s.talker, s.type, rec, stamp_ns))
         return out

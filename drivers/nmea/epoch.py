@@ -112,11 +112,11 @@ class EpochCombiner:
         y, m, d = self._date
         try:
             t = dt.datetime(y, m, d, tzinfo=dt.UTC) + dt.timedelta(milliseconds=ep.time_ms)
-        except ValueError:
+            if self.rollover_before_year is not None and y < self.rollover_before_year:
+                t += dt.timedelta(seconds=ROLLOVER_S)
+        except (ValueError, OverflowError):  # 30 February; past year 9999
             return ""
-        if self.rollover_before_year is not None and y < self.rollover_before_year:
-            t += dt.timedelta(seconds=ROLLOVER_S)
-        return t.strftime("%Y-%m-%dT%H:%M:%S.") + f"{t.microsecond // 1000:03d}Z"
+        return f"{t.year:04d}" + t.strftime("-%m-%dT%H:%M:%S.") + f"{t.microsecond // 1000:03d}Z"
 
     def _fix(self, ep: _Epoch) -> GpsFix:
         ep.dirty = False

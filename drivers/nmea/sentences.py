@@ -226,11 +226,18 @@ def parse_gst(f: tuple[str, ...]) -> GST | None:
 
 
 def parse_zda(f: tuple[str, ...]) -> ZDA | None:
+    """ZDA ``time,dd,mm,yyyy,...``: empty date fields give no date; a date that is there but
+    out of range (a year other than four digits in 1900-2200, as gpsd checks) is malformed."""
     if len(f) < 4:
         return None
+    if not (f[1] or f[2] or f[3]):
+        return ZDA(time_of_day_ms(f[0]), None)
     d, m, y = integer(f[1]), integer(f[2]), integer(f[3])
-    date = (y, m, d) if d and m and y and 1 <= m <= 12 and 1 <= d <= 31 else None
-    return ZDA(time_of_day_ms(f[0]), date)
+    if d is None or m is None or y is None or len(f[3]) != 4:
+        return None
+    if not (1900 <= y <= 2200 and 1 <= m <= 12 and 1 <= d <= 31):
+        return None
+    return ZDA(time_of_day_ms(f[0]), (y, m, d))
 
 
 PARSERS = {

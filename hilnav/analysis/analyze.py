@@ -56,6 +56,8 @@ def diagnostics_summary(diags: dict[str, list[DeviceDiagnostics]]) -> dict[str, 
             reconnects=last.reconnects,
             mean_rate_hz=float(np.mean(rates)) if rates else 0.0,
             errors=errors[:5],
+            malformed=last.malformed,
+            duplicates=last.duplicates,
         )
     return out
 

@@ -150,6 +150,8 @@ class DeviceSummary:
     reconnects: int
     mean_rate_hz: float
     errors: list[str]
+    malformed: int = 0
+    duplicates: int = 0
 
 
 @dataclass(frozen=True)
