@@ -9,6 +9,7 @@ association), drives the demo's office tour over cmd_vel from a second Zenoh ses
 Prints, the LAST line a JSON object:
 - ``cpu_percent_daemon``: CPU time of the daemon process over the run, in percent of one
   core (``cpu_percent_fakes``: the emulated devices' process, for reference);
+- ``peak_rss_mb_daemon``: the daemon's peak resident memory (VmHWM), MiB;
 - ``pose_latency_ms_p50`` / ``_p99``: from the time the Pioneer's bytes were read (the
   odometry stamp, which the pose inherits) to the pose arriving in the second session;
 - ``mcap_messages_per_s``: messages in the log (all topics, raw bytes and Foxglove views
@@ -46,6 +47,15 @@ def cpu_seconds(pid: int) -> float:
     with open(f"/proc/{pid}/stat") as f:
         fields = f.read().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def peak_rss_mb(pid: int) -> float:
+    """The process's peak resident memory (VmHWM) so far, in MiB."""
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
 
 
 def children(pid: int) -> list[int]:
@@ -174,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     if not wait_for_robot(op, proc):
         return 1
     cpu, fcpu, elapsed = drive_tour(op, proc, latencies, args.seconds)
+    rss = peak_rss_mb(proc.pid)
     stdout, stderr = stop_daemon(op, proc)
     n_msgs, span_s = log_statistics(log)
     lat = np.array(latencies.values) if latencies.values else np.array([np.nan])
@@ -183,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         "exit_code": proc.returncode,
         "cpu_percent_daemon": round(100.0 * cpu / elapsed, 1),
         "cpu_percent_fakes": round(100.0 * fcpu / elapsed, 1),
+        "peak_rss_mb_daemon": round(rss, 1),
         "pose_latency_ms_p50": round(float(np.percentile(lat, 50)), 2),
         "pose_latency_ms_p99": round(float(np.percentile(lat, 99)), 2),
         "poses_received": len(latencies.values),
