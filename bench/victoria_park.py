@@ -34,20 +34,20 @@ from pathlib import Path
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import numpy as np
+import numpy as np  # noqa: E402
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hilnav.analysis.geometry import apply_fit, rigid_fit
-from hilnav.analysis.gps_error import (
+from hilnav.analysis.geometry import apply_fit, rigid_fit  # noqa: E402
+from hilnav.analysis.gps_error import (  # noqa: E402
     errors_at_fixes,
     gps_inliers,
     travelled_from_speed,
 )
-from mapping.slam.models import AckermannGeometry
-from mapping.slam.service import LandmarkSlam, SlamConfig
-from mapping.slam.victoria_park import (
+from mapping.slam.models import AckermannGeometry  # noqa: E402
+from mapping.slam.service import LandmarkSlam, SlamConfig  # noqa: E402
+from mapping.slam.victoria_park import (  # noqa: E402
     DURATION_S,
     VictoriaParkData,
     load_victoria_park,

@@ -112,7 +112,7 @@ class FileTransport(Transport):
     def __init__(self, path: str) -> None:
         self.url = path
         try:
-            self._f = open(path, "rb")
+            self._f = open(path, "rb")  # noqa: SIM115
         except OSError as exc:
             raise _open_error(path, exc) from None
 

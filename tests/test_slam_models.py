@@ -90,8 +90,8 @@ def test_observation_jacobians(offset):
         xv = rng.uniform(-5, 5, 3)
         m = xv[:2] + rng.uniform(-20, 20, 2)
         z, hv, hm = observe(xv, m[None], offset)
-        f_x = lambda v, m=m: observe(v, m[None], offset)[0][0]
-        f_m = lambda mm, xv=xv: observe(xv, mm[None], offset)[0][0]
+        f_x = lambda v, m=m: observe(v, m[None], offset)[0][0]  # noqa: E731
+        f_m = lambda mm, xv=xv: observe(xv, mm[None], offset)[0][0]  # noqa: E731
         np.testing.assert_allclose(hv[0], numjac(f_x, xv, (1,)), atol=1e-6)
         np.testing.assert_allclose(hm[0], numjac(f_m, m, (1,)), atol=1e-6)
 
@@ -119,8 +119,8 @@ def test_inverse_model_and_jacobians(offset):
         zz, _, _ = observe(xv, m, offset)
         np.testing.assert_allclose(zz[0, 0], z[0])
         assert wrap(zz[0, 1] - z[1]) == pytest.approx(0.0, abs=1e-12)
-        f_x = lambda v, z=z: inverse_observe(v, z[None], offset)[0][0]
-        f_z = lambda zz, xv=xv: inverse_observe(xv, zz[None], offset)[0][0]
+        f_x = lambda v, z=z: inverse_observe(v, z[None], offset)[0][0]  # noqa: E731
+        f_z = lambda zz, xv=xv: inverse_observe(xv, zz[None], offset)[0][0]  # noqa: E731
         np.testing.assert_allclose(gx[0], numjac(f_x, xv), atol=1e-6)
         np.testing.assert_allclose(gz[0], numjac(f_z, z), atol=1e-6)
 

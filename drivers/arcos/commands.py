@@ -98,5 +98,5 @@ def split_vel2(arg: int, divisor: int = VEL2_DIVISOR_MMPS) -> tuple[int, int]:
     """(left, right) mm/s from a VEL2 argument as the robot decodes it."""
     raw = arg & 0xFFFF
     hi, lo = raw >> 8, raw & 0xFF
-    to_s = lambda b: b - 256 if b > 127 else b
+    to_s = lambda b: b - 256 if b > 127 else b  # noqa: E731
     return to_s(hi) * divisor, to_s(lo) * divisor

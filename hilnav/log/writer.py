@@ -86,7 +86,7 @@ class LogWriter:
         self._flush_s = float(flush_every_s)
         self._encoder = Encoder(views=foxglove_views)
         self._lock = threading.Lock()
-        self._stream = open(self.path, "wb")
+        self._stream = open(self.path, "wb")  # noqa: SIM115 - closed in close()
         self._writer = Writer(
             self._stream, chunk_size=chunk_size, compression=COMPRESSIONS[compression]
         )
