@@ -33,8 +33,8 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fakes.world.paper_scenario import PAPER_ROBOTS, simulate  # noqa: E402
-from hilnav.fleet.paper import METHODS, PaperRobot, summary  # noqa: E402
+from fakes.world.paper_scenario import PAPER_ROBOTS, simulate
+from hilnav.fleet.paper import METHODS, PaperRobot, summary
 
 
 def run(sc, window: int, outliers: int = 0) -> tuple[list[PaperRobot], float, float]:

@@ -36,8 +36,8 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hilnav.bus import free_tcp_port  # noqa: E402
-from hilnav.commands.demo import TOUR, Operator  # noqa: E402
+from hilnav.bus import free_tcp_port
+from hilnav.commands.demo import TOUR, Operator
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -101,7 +101,7 @@ class PoseLatencies:
         self._lock = threading.Lock()
         self.values: list[float] = []
 
-    def on_pose(self, robot, msg) -> None:  # noqa: ANN001
+    def on_pose(self, robot, msg) -> None:
         now = time.time_ns()
         with self._lock:
             self.values.append((now - msg.stamp_ns) * 1e-6)

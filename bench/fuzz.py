@@ -28,8 +28,8 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.codec_fuzz import Tally, fuzz_one  # noqa: E402
-from tests.codec_streams import STREAMS  # noqa: E402
+from tests.codec_fuzz import Tally, fuzz_one
+from tests.codec_streams import STREAMS
 
 COLUMNS = ("streams", "crashes", "phantoms", "lost_after_damage", "lost_before_damage", "late",
            "accepted_damaged", "swallowed", "seconds")  # fmt: skip

@@ -34,16 +34,16 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from drivers.sharp import STATUS_NAMES, SharpCurve  # noqa: E402
-from fakes.world import DiffDriveRobot, GyroErrorModel, IrErrorModel, SlipModel, World  # noqa: E402
-from fusion.heading import HeadingFilter, HeadingParams  # noqa: E402
-from mapping.association import AssociationConfig, SampleAssociation  # noqa: E402
-from mapping.export import write_png  # noqa: E402
-from mapping.grid import GridConfig, OccupancyGrid  # noqa: E402
-from mapping.ir_inverse import InverseModelConfig, IrInverseModel, beams_from_scan  # noqa: E402
-from mapping.mapfile import write_map  # noqa: E402
-from mapping.quality import compare, true_map  # noqa: E402
-from msgs import HeadingEstimate, IrScan, Pose2D, wrap_angle  # noqa: E402
+from drivers.sharp import STATUS_NAMES, SharpCurve
+from fakes.world import DiffDriveRobot, GyroErrorModel, IrErrorModel, SlipModel, World
+from fusion.heading import HeadingFilter, HeadingParams
+from mapping.association import AssociationConfig, SampleAssociation
+from mapping.export import write_png
+from mapping.grid import GridConfig, OccupancyGrid
+from mapping.ir_inverse import InverseModelConfig, IrInverseModel, beams_from_scan
+from mapping.mapfile import write_map
+from mapping.quality import compare, true_map
+from msgs import HeadingEstimate, IrScan, Pose2D, wrap_angle
 
 DEG = math.pi / 180.0
 

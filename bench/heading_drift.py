@@ -33,9 +33,9 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.fusion_sim import SimRun, run_lengths, simulate  # noqa: E402
-from fusion.heading import HeadingFilter, HeadingParams  # noqa: E402
-from msgs import GyroSample, RobotOdometry, wrap_angle  # noqa: E402
+from bench.fusion_sim import SimRun, run_lengths, simulate
+from fusion.heading import HeadingFilter, HeadingParams
+from msgs import GyroSample, RobotOdometry, wrap_angle
 
 CHECK_EVERY_M = 5.0
 

@@ -30,13 +30,13 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hilnav.bus import Bus, ZenohSettings, free_tcp_port  # noqa: E402
-from msgs import GroundTruth, VelocityCommand  # noqa: E402
+from hilnav.bus import Bus, ZenohSettings, free_tcp_port
+from msgs import GroundTruth, VelocityCommand
 
 HILNAV = [sys.executable, "-m", "hilnav"]
 
 
-def _wait(cond, timeout_s: float) -> bool:  # noqa: ANN001
+def _wait(cond, timeout_s: float) -> bool:
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
         if cond():

@@ -43,9 +43,9 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.fusion_sim import SimRun, run_lengths, simulate  # noqa: E402
-from fusion.pose_ekf import PoseEkf, PoseEkfParams  # noqa: E402
-from msgs import GpsFix, GyroSample, Pose2D, RobotOdometry, wrap_angle  # noqa: E402
+from bench.fusion_sim import SimRun, run_lengths, simulate
+from fusion.pose_ekf import PoseEkf, PoseEkfParams
+from msgs import GpsFix, GyroSample, Pose2D, RobotOdometry, wrap_angle
 
 ODO, GYRO, GPS = RobotOdometry, GyroSample, GpsFix
 # name -> (messages fed, parameters); defaults (GPS bias states on) but the last two rows:

@@ -27,9 +27,9 @@ from typing import Any
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from hilnav.config import parse_config  # noqa: E402
-from hilnav.devices import DEVICES, FakeKnobs  # noqa: E402
-from hilnav.fakeset import build_fakes  # noqa: E402
+from hilnav.config import parse_config
+from hilnav.devices import DEVICES, FakeKnobs
+from hilnav.fakeset import build_fakes
 
 
 class Reader:
@@ -49,7 +49,7 @@ class Reader:
     def start(self) -> None:
         try:
             self.driver.open()
-        except Exception:  # noqa: BLE001 - the driver retries in read()
+        except Exception:
             pass
         self._t.start()
 

@@ -63,7 +63,7 @@ class GpsEmulator(PtyStreamEmulator):
         self._due = 0.0
         self.epochs = 0
 
-    def start(self, runner) -> None:  # noqa: ANN001
+    def start(self, runner) -> None:
         if self.start_utc is None:
             now = dt.datetime.now(dt.UTC)
             self.start_utc = now.replace(microsecond=(now.microsecond // 100_000) * 100_000)
@@ -174,7 +174,7 @@ class NmeaReplayEmulator(PortEmulator):
         self.sent_epochs = 0
         self.done = threading.Event()
 
-    def start(self, runner) -> None:  # noqa: ANN001
+    def start(self, runner) -> None:
         self._open(runner, prefix="replay")
 
     def _on_port(self, port: VirtualSerialPort) -> None:

@@ -61,7 +61,7 @@ class IrBoardEmulator(PtyStreamEmulator):
         self._mounts = self.config.mounts_array()
 
     # -- lifecycle ------------------------------------------------------------------------
-    def start(self, runner) -> None:  # noqa: ANN001
+    def start(self, runner) -> None:
         if self.link == "serial":
             super().start(runner)
             return

@@ -79,7 +79,7 @@ class PioneerEmulator(PortEmulator):
         self.hung = False
 
     # -- lifecycle --------------------------------------------------------------------
-    def start(self, runner) -> None:  # noqa: ANN001 (FakeRunner; avoids an import cycle)
+    def start(self, runner) -> None:
         self._runner = runner
         self.drive.attach(runner.world.robots[self.robot_name])
         self._t0 = time.monotonic()

@@ -64,9 +64,7 @@ class VirtualSerialPort:
         except (OSError, ValueError):
             return b""
 
-    def write(
-        self, data: bytes, *, block: bool = True, stop: threading.Event | None = None
-    ) -> int:
+    def write(self, data: bytes, *, block: bool = True, stop: threading.Event | None = None) -> int:
         """Send bytes to the driver, paced at ``baud`` if set; dropped while vanished.
 
         Blocking (default): waits while the pty's buffer is full, until ``stop`` is set.

@@ -25,7 +25,7 @@ class PortEmulator:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def _open(self, runner, baud: int | None = None, prefix: str = "fake") -> None:  # noqa: ANN001
+    def _open(self, runner, baud: int | None = None, prefix: str = "fake") -> None:
         """Create the port under the runner's link directory and start serving it."""
         self.port = VirtualSerialPort(runner.link_dir / self.name, baud=baud)
         self._on_port(self.port)
@@ -61,7 +61,7 @@ class PtyStreamEmulator(PortEmulator):
         self.bytes_dropped = 0
         self.lock = threading.Lock()
 
-    def start(self, runner) -> None:  # noqa: ANN001 (FakeRunner; avoids an import cycle)
+    def start(self, runner) -> None:
         self._runner = runner
         self._open(runner)
 

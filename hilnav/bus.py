@@ -240,7 +240,7 @@ class Bus:
         def on_sample(sample: zenoh.Sample) -> None:
             try:
                 deliver(sample)
-            except Exception as exc:  # noqa: BLE001 - nothing a peer sends may escape
+            except Exception as exc:
                 self._count("malformed", f"{sample.key_expr}: {exc!r}")
 
         def deliver(sample: zenoh.Sample) -> None:
@@ -267,7 +267,7 @@ class Bus:
                 self.stats.received += 1
             try:
                 callback(src, topic, msg)
-            except Exception as exc:  # noqa: BLE001 - a callback must never kill Zenoh's thread
+            except Exception as exc:
                 self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
 
         sub = self.session.declare_subscriber(keyexpr, on_sample)
@@ -294,7 +294,7 @@ class Bus:
                 return
             try:
                 callback(parts[1], sample.kind == zenoh.SampleKind.PUT)
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:
                 self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
 
         sub = self.session.liveliness().declare_subscriber(
@@ -311,7 +311,7 @@ class Bus:
         def on_query(query: zenoh.Query) -> None:
             try:
                 msg = handler()
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:
                 self._count("callback_errors", f"{k}: handler: {exc!r}")
                 query.reply_err(f"handler failed: {exc}".encode())
                 return

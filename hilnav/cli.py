@@ -53,7 +53,7 @@ class _Parser(argparse.ArgumentParser):
     """Every ``hilnav`` parser, sub-commands' included (argparse makes them of the
     parent's class), shows its defaults in ``--help``."""
 
-    def __init__(self, *args, **kwargs) -> None:  # noqa: ANN002, ANN003
+    def __init__(self, *args, **kwargs) -> None:
         kwargs.setdefault("formatter_class", _Formatter)
         super().__init__(*args, **kwargs)
 

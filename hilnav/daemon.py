@@ -206,7 +206,7 @@ class Daemon:
         except queue.Full:
             self.stats.dropped += 1
 
-    def _raw_hook(self, device: str):  # noqa: ANN202
+    def _raw_hook(self, device: str):
         if not self.cfg.log.raw or not self.cfg.log.enabled:
             return None
         topic = raw_topic(device)
@@ -219,14 +219,14 @@ class Daemon:
     def _reader(self, name: str, drv: Any) -> None:
         try:
             drv.open()
-        except Exception as exc:  # noqa: BLE001 - the driver retries in read()
+        except Exception as exc:
             drv.last_error = str(exc)
             self.errors.append(f"{name}: {exc}")
             print(f"hilnav run: {name}: {exc} (retrying)", file=sys.stderr, flush=True)
         while not self._stop.is_set():
             try:
                 got = drv.read(0.2)
-            except Exception as exc:  # noqa: BLE001 - a driver bug must not kill the thread
+            except Exception as exc:
                 drv.last_error = f"read failed: {exc!r}"
                 time.sleep(0.2)
                 continue
@@ -291,7 +291,7 @@ class Daemon:
     def _guard(self, where: str, fn: Any, *args: Any) -> None:
         try:
             fn(*args)
-        except Exception as exc:  # noqa: BLE001 - one message must never stop the loop
+        except Exception as exc:
             self._fault(where, exc)
 
     def _handle_safely(self, item: _Item, publish: bool = True) -> None:
@@ -334,7 +334,7 @@ class Daemon:
             try:
                 self.bus.publish(topic, msg)
                 self.stats.published += 1
-            except Exception as exc:  # noqa: BLE001 - a bus hiccup must not stop the robot
+            except Exception as exc:
                 self._fault("bus", exc)
         self._log(log_topic(self.robot, topic), msg, log_ns)
 
@@ -351,7 +351,7 @@ class Daemon:
         for drv in self.drivers.values():
             try:
                 d = drv.diagnostics(stamp)
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:
                 d = DeviceDiagnostics(stamp, getattr(drv, "device", "?"), last_error=repr(exc))
             self._emit("diagnostics", d, stamp)
         self._emit("status", self.status(stamp), stamp)

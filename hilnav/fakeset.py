@@ -106,7 +106,7 @@ class TruthPublisher:
 
     name = "truth"
 
-    def __init__(self, robot: str, bus, rate_hz: float = 10.0) -> None:  # noqa: ANN001
+    def __init__(self, robot: str, bus, rate_hz: float = 10.0) -> None:
         self.robot = robot
         self.bus = bus
         self.rate_hz = rate_hz
@@ -114,7 +114,7 @@ class TruthPublisher:
         self._runner = None
         self._due = 0.0
 
-    def start(self, runner) -> None:  # noqa: ANN001
+    def start(self, runner) -> None:
         self._runner = runner
 
     def tick(self, dt: float) -> None:
@@ -129,7 +129,7 @@ class TruthPublisher:
         try:
             self.bus.publish("truth", msg)
             self.published += 1
-        except Exception:  # noqa: BLE001 - the world thread must keep running
+        except Exception:
             pass
 
     def stop(self) -> None:

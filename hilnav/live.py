@@ -48,7 +48,7 @@ class LiveBridge:
         self._ctx = foxglove.Context()
         try:
             self.server = foxglove.start_server(name=name, host=host, port=port, context=self._ctx)
-        except Exception as exc:  # noqa: BLE001 - the SDK raises plain RuntimeErrors
+        except Exception as exc:
             raise LiveError(
                 f"cannot serve the live view on {host}:{port}: {exc} (another program may "
                 "listen there: give another port)"

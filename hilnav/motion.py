@@ -75,7 +75,7 @@ class MotionGuard:
         while not self._done.wait(period):
             try:
                 self.check(time.monotonic())
-            except Exception as exc:  # noqa: BLE001 - the watchdog must outlive any fault
+            except Exception as exc:
                 self._on_fault("watchdog", exc)
 
     def check(self, now: float) -> str | None:

@@ -68,14 +68,14 @@ class MappingWorker:
                 return
             try:
                 outs = self.mapping.feed(topic, msg)
-            except Exception as exc:  # noqa: BLE001 - a mapping bug must not stop the robot
+            except Exception as exc:
                 self.on_fault("mapping", exc)
                 continue
             for t, m in outs:
                 self.latest[t] = m
                 try:
                     self.sink(t, m, tag)
-                except Exception as exc:  # noqa: BLE001
+                except Exception as exc:
                     self.on_fault("mapping", exc)
 
     def close(self, timeout_s: float = 10.0) -> None:

@@ -106,7 +106,7 @@ def cell_class(cells: np.ndarray) -> np.ndarray:
     return np.where((c == -1) | (c == 0) | (c == 100), c, BETWEEN).astype(np.int8)
 
 
-def wanted_class(p: np.ndarray, mode: str, occupied_thresh: float, free_thresh: float):  # noqa: ANN201
+def wanted_class(p: np.ndarray, mode: str, occupied_thresh: float, free_thresh: float):
     """The class each cell of probability ``p`` (nan: never observed) must load as."""
     out = np.full(p.shape, UNKNOWN if mode == "trinary" else BETWEEN, dtype=np.int8)
     with np.errstate(invalid="ignore"):

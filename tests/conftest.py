@@ -44,7 +44,7 @@ def shared_dir() -> Path:
     return SHARED
 
 
-def pump(driver, seconds: float, v: float | None = None, w: float = 0.0):  # noqa: ANN001, ANN201
+def pump(driver, seconds: float, v: float | None = None, w: float = 0.0):
     """Read a driver for ``seconds`` (driving at v, w if given); the last odometry seen."""
     from msgs import RobotOdometry
 

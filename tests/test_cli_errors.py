@@ -10,7 +10,7 @@ import pytest
 from tests.conftest import HILNAV, hilnav_env
 
 
-def _run(*args: str, cwd) -> subprocess.CompletedProcess:  # noqa: ANN001
+def _run(*args: str, cwd) -> subprocess.CompletedProcess:
     return subprocess.run([*HILNAV, *args], capture_output=True, text=True, cwd=cwd,
                           env=hilnav_env(), timeout=60)  # fmt: skip
 

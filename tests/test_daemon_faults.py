@@ -115,7 +115,7 @@ def test_an_exception_in_a_service_is_counted_and_the_loop_goes_on(robot, monkey
     d, _, _, _ = robot
     real = d.pipeline.feed
 
-    def broken(topic, msg, tag=None):  # noqa: ANN001, ANN202
+    def broken(topic, msg, tag=None):
         raise struct_error("a bug in a service")
 
     monkeypatch.setattr(d.pipeline, "feed", broken)
@@ -127,7 +127,7 @@ def test_an_exception_in_a_service_is_counted_and_the_loop_goes_on(robot, monkey
     assert any("a bug in a service" in e for e in d.errors)
 
 
-class struct_error(Exception):  # noqa: N801 - stands in for the struct.error seen in the field
+class struct_error(Exception):
     pass
 
 
@@ -141,7 +141,7 @@ def test_a_stalled_service_loop_stops_the_robot(robot, monkeypatch):
     release = threading.Event()
     real = d.pipeline.feed
 
-    def hang(topic, msg, tag=None):  # noqa: ANN001, ANN202
+    def hang(topic, msg, tag=None):
         release.wait(20.0)
         return real(topic, msg, tag)
 

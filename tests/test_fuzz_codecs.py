@@ -80,7 +80,7 @@ def test_sequence_numbers_count_drops_and_duplicates(name, data):
     assert codec.stats.duplicates == len(samples)
 
 
-def _is_sample(ad, p: Piece) -> bool:  # noqa: ANN001
+def _is_sample(ad, p: Piece) -> bool:
     return p.key is not None if ad.framed else p.data[:2] == SYNC_DATA
 
 
@@ -93,7 +93,7 @@ class _Broken(Gyro):
         super().__init__()
         self.fault = fault
 
-    def feed(self, codec, chunk, stamp):  # noqa: ANN001, ANN201
+    def feed(self, codec, chunk, stamp):
         keys = super().feed(codec, chunk, stamp)
         if self.fault == "crash":
             raise OverflowError("injected")
@@ -105,7 +105,7 @@ class _Broken(Gyro):
             keys, self.held = self.held, keys
         return keys
 
-    def finish(self, codec):  # noqa: ANN001, ANN201
+    def finish(self, codec):
         held, self.held = self.held, []
         return held
 

@@ -58,7 +58,7 @@ def test_info_comes_from_the_summary_with_the_figures_of_the_scan(
     scanned = log_info(path, scan=True).as_dict()
     assert scanned["source"] == "scan" and scanned["messages"] == n
 
-    def no_scan(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+    def no_scan(*args, **kwargs):
         raise AssertionError("a finished file must not be scanned")
 
     monkeypatch.setattr(info_mod, "iter_raw", no_scan)

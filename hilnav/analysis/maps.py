@@ -70,7 +70,7 @@ def logged_map(path: str | Path, robot: str | None = None, at_s: float | None = 
     return LoggedMap(who, m.log_time_ns, (m.log_time_ns - start) / NS, m.msg)
 
 
-def grid_of_msg(msg: OccupancyGridMsg):  # noqa: ANN201 - mapping.grid.OccupancyGrid
+def grid_of_msg(msg: OccupancyGridMsg):
     """A mapping OccupancyGrid (log-odds) from a logged foxglove.Grid."""
     from mapping.export import from_grid_msg
     from mapping.grid import OccupancyGrid
@@ -82,7 +82,7 @@ def grid_of_msg(msg: OccupancyGridMsg):  # noqa: ANN201 - mapping.grid.Occupancy
     return OccupancyGrid.from_array(logodds, res, (msg.pose.position.x, msg.pose.position.y))
 
 
-def load_plan(name: str):  # noqa: ANN201 - fakes.world.FloorPlan
+def load_plan(name: str):
     """A floor plan of fakes.world by name (ValueError for an unknown one)."""
     from fakes.world import floorplan
 

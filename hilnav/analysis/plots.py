@@ -8,15 +8,15 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import to_rgb  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import to_rgb
+from matplotlib.patches import Rectangle
 
-from hilnav.analysis.geometry import apply_fit  # noqa: E402
-from hilnav.analysis.maps import grid_of_msg, load_plan  # noqa: E402
-from hilnav.analysis.result import Analysis, RobotAnalysis  # noqa: E402
-from hilnav.analysis.tracks import NS  # noqa: E402
+from hilnav.analysis.geometry import apply_fit
+from hilnav.analysis.maps import grid_of_msg, load_plan
+from hilnav.analysis.result import Analysis, RobotAnalysis
+from hilnav.analysis.tracks import NS
 
 COLORS = {
     "truth": "black",
@@ -34,7 +34,7 @@ def _color(name: str) -> str:
     return COLORS.get(name, "tab:gray")
 
 
-def _plan_walls(ax, plan_name: str | None) -> None:  # noqa: ANN001
+def _plan_walls(ax, plan_name: str | None) -> None:
     if not plan_name:
         return
     try:
@@ -45,7 +45,7 @@ def _plan_walls(ax, plan_name: str | None) -> None:  # noqa: ANN001
         ax.plot([x0, x1], [y0, y1], color="0.35", lw=1.5, zorder=1)
 
 
-def _save(fig, path: Path) -> Path:  # noqa: ANN001
+def _save(fig, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=110, metadata=_PNG_META)
     plt.close(fig)
@@ -56,7 +56,7 @@ def _save(fig, path: Path) -> Path:  # noqa: ANN001
 PATH_BOXES = 6
 
 
-def _gps_points(ax, ra: RobotAnalysis) -> None:  # noqa: ANN001
+def _gps_points(ax, ra: RobotAnalysis) -> None:
     """The GPS fixes: kept ones as dots, those the outlier rule excluded as crosses."""
     _, gx, gy, _ = ra.series.log.gps.arrays()
     keep = ra.series.gps_keep
@@ -68,7 +68,7 @@ def _gps_points(ax, ra: RobotAnalysis) -> None:  # noqa: ANN001
                    label="GPS outliers (excluded)", zorder=2)  # fmt: skip
 
 
-def _sparse_boxes(ax, ra: RobotAnalysis) -> None:  # noqa: ANN001
+def _sparse_boxes(ax, ra: RobotAnalysis) -> None:
     """A few CP boxes (evenly spaced in time, the last included), lightly filled, below
     the paths, so that they show the box size without hiding the paths."""
     boxes = [b for b in ra.series.boxes.boxes if not (b.x.empty or b.y.empty)]

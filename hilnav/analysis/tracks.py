@@ -48,7 +48,7 @@ class Track:
     theta: list[float] = field(default_factory=list)
     var: list[tuple[float, float, float]] = field(default_factory=list)  # sx^2, sy^2, st^2
 
-    def add(self, t: int, x: float, y: float, theta: float, var=None) -> None:  # noqa: ANN001
+    def add(self, t: int, x: float, y: float, theta: float, var=None) -> None:
         self.t.append(int(t))
         self.x.append(float(x))
         self.y.append(float(y))

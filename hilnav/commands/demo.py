@@ -117,7 +117,7 @@ class Operator:
             self.robot, "cmd_vel", VelocityCommand(time.time_ns(), v, w, source="operator")
         )
 
-    def drive(self, waypoints, speed: float, deadline: float) -> int:  # noqa: ANN001
+    def drive(self, waypoints, speed: float, deadline: float) -> int:
         """Follow the waypoints; returns how many were reached before the deadline."""
         from msgs import wrap_angle
 

@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
         runner.add(TruthPublisher(cfg.name, bus, rate))
     done = threading.Event()
 
-    def on_signal(signum, frame):  # noqa: ANN001
+    def on_signal(signum, frame):
         done.set()
 
     signal.signal(signal.SIGINT, on_signal)

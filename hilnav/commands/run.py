@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     )
     daemon = Daemon(cfg, log_path=args.log, sinks=sinks)
 
-    def on_signal(signum, frame):  # noqa: ANN001
+    def on_signal(signum, frame):
         daemon.request_stop()
 
     signal.signal(signal.SIGINT, on_signal)

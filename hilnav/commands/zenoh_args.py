@@ -45,5 +45,5 @@ def open_bus(name: str, settings: ZenohSettings) -> Bus:
     """A :class:`hilnav.bus.Bus` without a fleet filter; CliError if Zenoh refuses."""
     try:
         return Bus(name, settings)
-    except Exception as exc:  # noqa: BLE001 - zenoh.ZError and friends
+    except Exception as exc:
         raise CliError(f"cannot open the Zenoh session: {zenoh_problem(exc)}") from None
