@@ -12,7 +12,7 @@ from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
 from msgs.relative import RelativeMeasurement
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
-from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
+from msgs.sensors import GpsFix, GpsSatellite, GpsSky, GyroSample, IrScan, IrStatus
 
 __all__ = [
     "AssociationReport",
@@ -20,6 +20,8 @@ __all__ = [
     "DecodeError",
     "DeviceDiagnostics",
     "GpsFix",
+    "GpsSatellite",
+    "GpsSky",
     "GroundTruth",
     "GyroSample",
     "HeadingEstimate",

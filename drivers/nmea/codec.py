@@ -1,4 +1,4 @@
-"""NMEA byte stream -> sentences -> :class:`msgs.GpsFix` (the GPS codec).
+"""NMEA byte stream -> sentences -> :class:`msgs.GpsFix` and :class:`msgs.GpsSky`.
 
 Framing: a sentence starts at ``$`` and ends at LF (CR optional). A line is dropped and
 counted when it is overlong (over ``max_line`` bytes from ``$`` to the checksum, CR and LF
@@ -7,8 +7,8 @@ not counted; default 128: Skytraq's PSTI sentences are 108), holds non-printable
 with ``require_checksum=False``. A sentence cut short by the start of the next
 (``$GPGGA,12$GPRMC,...``) is dropped and the next one kept, so the codec is back in step
 within one sentence. Bytes outside sentences are skipped and counted. A sentence of a
-supported type whose fields do not parse is counted in ``stats.malformed``. NMEA has no
-sequence numbers: a lost sentence cannot be counted.
+decoded type with fewer fields than gpsd accepts, or a date out of range, is counted in
+``stats.malformed``. NMEA has no sequence numbers: a lost sentence cannot be counted.
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ from __future__ import annotations
 from drivers.base import CodecStats
 from drivers.nmea.epoch import EpochCombiner
 from drivers.nmea.local import Datum
-from drivers.nmea.sentences import PARSERS, Sentence
-from msgs import GpsFix
+from drivers.nmea.sentences import Sentence
+from drivers.nmea.session import HANDLERS
+from msgs import GpsFix, GpsSky
 
 _HEX = frozenset(b"0123456789ABCDEFabcdef")
 
@@ -114,7 +115,8 @@ class NmeaFramer:
 
 
 class NmeaCodec:
-    """Bytes -> :class:`msgs.GpsFix`, one per epoch (see :mod:`drivers.nmea.epoch`)."""
+    """Bytes -> :class:`msgs.GpsFix` per epoch and :class:`msgs.GpsSky` when the sky
+    changed (see :mod:`drivers.nmea.epoch`)."""
 
     def __init__(
         self,
@@ -126,30 +128,28 @@ class NmeaCodec:
         self.framer = NmeaFramer(require_checksum, max_line)
         self.combiner = EpochCombiner(datum, rollover_before_year)
         self.stats = self.framer.stats
-        self.ignored = 0  # well-formed sentences of types we do not use (GSV, GLL, ...)
+        self.ignored = 0  # well-formed sentences of types not decoded (TXT, ...)
 
     @property
     def malformed(self) -> int:
-        """Sentences of supported types whose fields do not parse (``stats.malformed``)."""
+        """Sentences of decoded types whose fields do not parse (``stats.malformed``)."""
         return self.stats.malformed
 
-    def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix]:
-        out: list[GpsFix] = []
-        for s in self.framer.feed(data):
-            parser = PARSERS.get(s.type)
-            if parser is None:
+    def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix | GpsSky]:
+        out: list[GpsFix | GpsSky] = []
+        add = self.combiner.add
+        session = self.combiner.session
+        before = session.malformed
+        for talker, kind, fields in self.framer.feed(data):
+            if talker == "P":
+                kind = "P" + kind
+            if kind not in HANDLERS:
                 self.ignored += 1
                 continue
-            try:
-                rec = parser(s.fields)
-            except (ValueError, IndexError):
-                rec = None
-            if rec is None:
-                self.stats.malformed += 1
-                continue
-            out.extend(self.combiner.add(s.talker, s.type, rec, stamp_ns))
+            out.extend(add(talker, kind, fields, stamp_ns))
+        self.stats.malformed += session.malformed - before
         return out
 
-    def flush(self) -> list[GpsFix]:
-        """The last epoch's fix at the end of a stream."""
+    def flush(self) -> list[GpsFix | GpsSky]:
+        """The last epoch's fix (and sky) at the end of a stream."""
         return self.combiner.flush()
