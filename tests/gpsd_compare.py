@@ -5,7 +5,8 @@ epoch is a time (the TPV objects that have one; several TPVs of one time: the la
 ours are the fixes with that ``time_utc`` (several: the last one). A gpsd time 1024 weeks
 after ours counts as the same (gpsd's week-rollover correction). SKY objects carry no
 time: each belongs to the epoch of the last sentence before it that gives a time of day
-(without sentences in the ``.chk``: to the next timed TPV).
+(without sentences in the ``.chk``: to the next timed TPV); the codec reports a sky when
+it changes, so its sky at an epoch is the last one reported up to that epoch's time.
 
 Each field is compared where gpsd or the codec has it, as gpsd's regression compares
 its output: to the precision gpsd prints (one unit of its last digit: 1e-9 degrees,
@@ -149,6 +150,15 @@ def _last_by_time(msgs: Iterable[GpsFix | GpsSky], cls: type) -> dict[dt.datetim
     return out
 
 
+def _at_or_before(by_time: dict[dt.datetime, object], t: dt.datetime) -> object | None:
+    """The last message at or before ``t`` (a sky holds until the next one)."""
+    best = None
+    for when, msg in by_time.items():
+        if when <= t and (best is None or when >= best[0]):
+            best = (when, msg)
+    return None if best is None else best[1]
+
+
 def compare(log: Path, chk: Path) -> Agreement:
     """Field-by-field agreement of the codec with gpsd on one log."""
     tpvs, skies = expected(chk.read_text(encoding="utf-8", errors="replace"))
@@ -170,7 +180,7 @@ def compare(log: Path, chk: Path) -> Agreement:
             agree.count(
                 name, _same(ours, theirs, tol), f"{log.name} {t} {name}: {ours} vs {theirs}"
             )
-        sky = ours_sky.get(key)
+        sky = _at_or_before(ours_sky, key)
         for name, attr in SKY_FIELDS.items():
             theirs = skies.get(t, {}).get(name)
             if theirs is None:

@@ -10,7 +10,9 @@ reports each fix without waiting a whole period; an epoch not reported that way 
 first one, or an irregular receiver), or changed by sentences after its ender (a GSA, a
 GSV set), is reported (again) when the next epoch starts or at
 :meth:`EpochCombiner.flush`: the last fix of an epoch is its final state, which is what
-gpsd last reports for it. The sky is reported with the fix when a GGA, a GSA or a complete
+gpsd last reports for it. Sentences gpsd reports no fix for (a GSV set, PGRME, GBS) do
+not make an epoch report again, and what they change (error estimates) is not in its
+report, as in gpsd's last one. The sky is reported with the fix when a GGA, a GSA or a complete
 GSV set changed it, or when the epoch ends.
 
 A GpsFix holds what gpsd's TPV would print: position, altitudes, track, speed and error
@@ -35,11 +37,13 @@ from drivers.nmea.fixstate import (
     MODE_2D,
     MODE_3D,
     MODE_SET,
+    SATELLITE_SET,
     SPEED_SET,
     STATUS_SET,
     TIME_SET,
     TRACK_SET,
     VNED_SET,
+    Fix,
 )
 from drivers.nmea.local import Datum
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, Session
@@ -84,6 +88,7 @@ class EpochCombiner:
         self._reported = False
         self._pending = False  # the epoch has sentences not yet reported
         self._last_fix: GpsFix | None = None  # this epoch's last reported fix
+        self._snap: Fix | None = None  # the fix before sentences gpsd does not report
         self._stamp_ns = 0
         self._talker = ""
 
@@ -101,12 +106,16 @@ class EpochCombiner:
             self._ender = self._last_timed
             self._last_timed = None
             self._reported = False
+        worthy = mask & _FIX_BITS
+        if not worthy and self._pending and self._snap is None and (mask & SATELLITE_SET or new):
+            self._snap = st.fix.copy()  # the fix as gpsd last reported it (see module doc)
         st.apply(mask, new)
         self._stamp_ns = stamp_ns
         if kind != "GSV" and kind != "GSA":
             self._talker = talker
-        if mask & _FIX_BITS or new:
+        if worthy:
             self._pending = True
+            self._snap = None
         timed = st.latch_frac or (kind == "ZDA" and "time_ns" in new)
         if timed and kind in _TIMED:
             self._last_timed = kind
@@ -131,7 +140,8 @@ class EpochCombiner:
         self._last_fix = None
 
     def _report(self, out: list) -> None:
-        fix = self._fix()
+        fix = self._fix(self._snap or self.session.fix)
+        self._snap = None
         last = self._last_fix
         if last is None or replace(last, stamp_ns=fix.stamp_ns) != fix:
             out.append(fix)
@@ -167,9 +177,8 @@ class EpochCombiner:
             talker=self._talker,
         )
 
-    def _fix(self) -> GpsFix:
+    def _fix(self, f: Fix) -> GpsFix:
         st = self.session
-        f = st.fix
         has_fix = f.mode >= MODE_2D
         in_3d = f.mode >= MODE_3D
         lat = f.lat if has_fix else None

@@ -50,6 +50,12 @@ class Fix:
         self.mode = MODE_NOT_SEEN
         self.status = STATUS_UNK
 
+    def copy(self) -> Fix:
+        c = Fix.__new__(Fix)
+        for name in FIELDS:
+            setattr(c, name, getattr(self, name))
+        return c
+
     def snapshot(self) -> Snapshot:
         """The fields the next sentences and epochs look back at (gpsd's lastfix/oldfix)."""
         return Snapshot(self)
