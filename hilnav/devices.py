@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hilnav.config import RobotConfig, ir_board_config
-from msgs import GpsFix, GyroSample, IrScan, RobotInfo, RobotOdometry
+from msgs import GpsFix, GpsSky, GyroSample, IrScan, RobotInfo, RobotOdometry
 
 RawHook = Callable[[bytes, int], None] | None
 
@@ -194,7 +194,7 @@ _TABLE = (
            _ir_driver, _ir_codec, _ir_emulator, _ir_attach),
     Device("gyro", "CruzCore gyro", (GyroSample,),
            _gyro_driver, _gyro_codec, _gyro_emulator, _port("gyro")),
-    Device("gps", "NMEA GPS receiver", (GpsFix,),
+    Device("gps", "NMEA GPS receiver", (GpsFix, GpsSky),
            _gps_driver, _gps_codec, _gps_emulator, _port("gps")),
 )  # fmt: skip
 

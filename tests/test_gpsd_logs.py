@@ -37,8 +37,6 @@ def test_every_gpsd_log_agrees_with_gpsd(shared_dir):
     print(report)
     low = {k: round(total.fraction(k), 4) for k in total.counts}
     low = {k: v for k, v in low.items() if v < MIN_AGREEMENT}
-    assert not low, f"fields below {MIN_AGREEMENT:.0%}: {low}\n{report}\n" + "\n".join(
-        total.misses
-    )
+    assert not low, f"fields below {MIN_AGREEMENT:.0%}: {low}\n{report}\n" + "\n".join(total.misses)
     for name in ("time", "mode", "lat", "lon", "altMSL", "speed", "track", "eph"):
         assert total.counts.get(name, (0, 0))[1] > 0, f"no epoch compared {name}"
