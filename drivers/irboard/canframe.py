@@ -36,11 +36,28 @@ def dlc_for(channels: int, adc_bits: int) -> int:
     return (SEQ_BITS + channels * adc_bits + 7) // 8
 
 
-def channels_for_dlc(dlc: int, adc_bits: int) -> int | None:
+def _channels_for_dlc(dlc: int, adc_bits: int) -> int | None:
     for n in range(1, max_channels(adc_bits) + 1):
         if dlc_for(n, adc_bits) == dlc:
             return n
     return None
+
+
+# (dlc, adc_bits) -> (channel count, bit offset of each channel); None: no count fits
+_LAYOUTS: dict[tuple[int, int], tuple[int, tuple[int, ...]] | None] = {}
+
+
+def _layout(dlc: int, adc_bits: int) -> tuple[int, tuple[int, ...]] | None:
+    key = (dlc, adc_bits)
+    if key not in _LAYOUTS:
+        n = _channels_for_dlc(dlc, adc_bits)
+        _LAYOUTS[key] = None if n is None else (n, tuple(SEQ_BITS + k * adc_bits for k in range(n)))
+    return _LAYOUTS[key]
+
+
+def channels_for_dlc(dlc: int, adc_bits: int) -> int | None:
+    layout = _layout(dlc, adc_bits)
+    return None if layout is None else layout[0]
 
 
 def pack_sample(s: RawSample) -> tuple[int, bytes]:
@@ -66,12 +83,12 @@ def unpack_sample(arb_id: int, data: bytes, adc_bits: int) -> RawSample | None:
     board = arb_id - SAMPLE_ID_BASE
     if not 0 <= board <= MAX_BOARD_ID:
         return None
-    n = channels_for_dlc(len(data), adc_bits)
-    if n is None:
+    layout = _layout(len(data), adc_bits)
+    if layout is None:
         return None
     v = int.from_bytes(data, "little")
     mask = (1 << adc_bits) - 1
-    counts = tuple((v >> (SEQ_BITS + k * adc_bits)) & mask for k in range(n))
+    counts = tuple([(v >> shift) & mask for shift in layout[1]])
     return RawSample(board, v & 0xF, adc_bits, counts)
 
 
