@@ -13,6 +13,8 @@ decoded type with fewer fields than gpsd accepts, or a date out of range, is cou
 
 from __future__ import annotations
 
+import numpy as np
+
 from drivers.base import CodecStats
 from drivers.nmea.epoch import EpochCombiner
 from drivers.nmea.local import Datum
@@ -21,6 +23,24 @@ from drivers.nmea.session import HANDLERS
 from msgs import GpsFix, GpsSky
 
 _HEX = frozenset(b"0123456789ABCDEFabcdef")
+_HEX2 = {
+    f"{a}{b}": int(f"{a}{b}", 16)
+    for a in "0123456789ABCDEFabcdef"
+    for b in "0123456789ABCDEFabcdef"
+}
+_NUMPY_FROM = 512  # bytes from which a run's prefix XOR is computed with numpy
+
+
+def _prefix_xor(data: bytes) -> bytes:
+    """p[i] = data[0] ^ ... ^ data[i] (as bytes); p[j] ^ p[i] is the XOR of data[i+1..j]."""
+    if len(data) >= _NUMPY_FROM:
+        return np.bitwise_xor.accumulate(np.frombuffer(data, dtype=np.uint8)).tobytes()
+    out = bytearray(len(data))
+    c = 0
+    for i, b in enumerate(data):
+        c ^= b
+        out[i] = c
+    return bytes(out)
 
 
 class NmeaFramer:
@@ -39,15 +59,11 @@ class NmeaFramer:
         buf = self._buf
         buf += data
         out: list[Sentence] = []
-        pos = 0
-        while True:
-            nl = buf.find(b"\n", pos)
-            if nl < 0:
-                break
-            self._line(bytes(buf[pos:nl]), out)
-            pos = nl + 1
-        if pos:
-            del buf[:pos]
+        end = buf.rfind(b"\n")
+        if end >= 0:
+            region = bytes(buf[:end])
+            del buf[: end + 1]
+            self._lines(region, out)
         # A pending CR is the end of the line, not part of it: it does not count.
         limit = self.max_line + (buf[-1:] == b"\r")
         if len(buf) > limit:
@@ -61,6 +77,53 @@ class NmeaFramer:
             self.stats.resyncs += 1
             del buf[:cut]
         return out
+
+    def _lines(self, region: bytes, out: list[Sentence]) -> None:
+        """Every line of a run of complete lines. The usual line (``$...*HH``, printable
+        ASCII, short enough) is checked here with the XOR of the whole run computed at once
+        (a prefix XOR: a line's checksum is two look-ups); any other goes to :meth:`_line`."""
+        if not region.isascii():
+            for line in region.split(b"\n"):
+                self._line(line, out)
+            return
+        text = region.decode("ascii")
+        prefix = _prefix_xor(region)
+        max_line = self.max_line
+        stats = self.stats
+        pos = 0
+        append = out.append
+        for line in text.split("\n"):
+            n = len(line)
+            start, at = pos, pos
+            pos += n + 1
+            if line[-1:] == "\r":
+                line = line[:-1]
+            star = len(line) - 3
+            if (
+                line[:1] != "$"
+                or star < 1
+                or line[star] != "*"
+                or len(line) > max_line
+                or "$" in line[1:]
+                or not line.isprintable()
+                or line[star + 1 :] not in _HEX2
+            ):
+                self._line(region[start : start + n], out)
+                continue
+            c = prefix[at + star - 1] ^ prefix[at]  # XOR of the bytes between '$' and '*'
+            if c != _HEX2[line[star + 1 :]]:
+                stats.bad_checksums += 1
+                stats.bytes_skipped += len(line)
+                continue
+            address, _, rest = line[1:star].partition(",")
+            if len(address) < 3 or not address.isalnum():
+                stats.bytes_skipped += len(line)
+                continue
+            stats.frames_ok += 1
+            if address[0] == "P":  # proprietary: $P<maker><type>
+                append(Sentence("P", address[1:], tuple(rest.split(","))))
+            else:
+                append(Sentence(address[:2], address[2:], tuple(rest.split(","))))
 
     def _line(self, line: bytes, out: list[Sentence]) -> None:
         start = line.rfind(b"$")

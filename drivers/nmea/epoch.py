@@ -59,18 +59,34 @@ _FIX_BITS = (TIME_SET | LATLON_SET | MODE_SET | STATUS_SET | ALTITUDE_SET | TRAC
              | MAGNETIC_TRACK_SET | SPEED_SET | CLIMB_SET | VNED_SET)  # fmt: skip
 
 
+_DAYS: dict[int, str] = {}
+_LAST: list = [None, ""]  # the last time formatted (a fix and its sky share it)
+
+
 def iso_time(ns: int | None) -> str:
     """ISO 8601 UTC with milliseconds, rounded as gpsd rounds; "" for None or out of range."""
     if ns is None or ns < 0:
         return ""
+    if ns == _LAST[0]:
+        return _LAST[1]
     ms = (ns + 500_000) // 1_000_000
-    try:
-        t = _EPOCH + dt.timedelta(milliseconds=ms)
-    except OverflowError:
-        return ""
-    if t.year > 9999:
-        return ""
-    return f"{t.year:04d}-{t.month:02d}-{t.day:02d}T{t.hour:02d}:{t.minute:02d}:{t.second:02d}.{ms % 1000:03d}Z"  # noqa: E501
+    day, ms_of_day = divmod(ms, 86_400_000)
+    date = _DAYS.get(day)
+    if date is None:
+        try:
+            t = _EPOCH + dt.timedelta(days=day)
+        except OverflowError:
+            return ""
+        if t.year > 9999:
+            return ""
+        date = _DAYS[day] = f"{t.year:04d}-{t.month:02d}-{t.day:02d}T"
+        if len(_DAYS) > 64:
+            _DAYS.clear()
+    s, milli = divmod(ms_of_day, 1000)
+    m, s = divmod(s, 60)
+    h, m = divmod(m, 60)
+    _LAST[:] = [ns, f"{date}{h:02d}:{m:02d}:{s:02d}.{milli:03d}Z"]
+    return _LAST[1]
 
 
 def _opt(v: float | None, shown: bool) -> float | None:
@@ -207,7 +223,7 @@ class EpochCombiner:
             hdop=dop.get("hdop"),
             pdop=dop.get("pdop"),
             vdop=dop.get("vdop"),
-            speed_mps=_opt(f.speed, has_fix),
+            speed_mps=_opt(f.speed_now(), has_fix),
             course_deg=_opt(f.track, has_fix),
             std_lat_m=gst[4],
             std_lon_m=gst[5],

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from drivers.nmea.fixstate import MODE_2D, MODE_3D, STATUS_DGPS
+from drivers.nmea.fixstate import DEFERRED, MODE_2D, MODE_3D, STATUS_DGPS
 
 if TYPE_CHECKING:
     from drivers.nmea.session import Session
@@ -72,6 +72,12 @@ def earth_distance(lat1, lon1, lat2, lon2) -> float | None:  # noqa: ANN001
     return WGS84_B * a * (sigma - ds)
 
 
+def deferred_speed(lat1, lon1, lat2, lon2, dt: float) -> float | None:  # noqa: ANN001
+    """Speed from the distance between two fixes (gpsd's, when no sentence gave one)."""
+    d = earth_distance(lat1, lon1, lat2, lon2)
+    return None if d is None else _sane(d / dt)
+
+
 def _sane(v: float | None) -> float | None:
     return None if v is None or abs(v) > _MAX_RATE else v
 
@@ -84,11 +90,9 @@ def _norm360(deg: float) -> float:
     return deg
 
 
-def _derived(fix) -> None:  # noqa: ANN001
-    """Velocities, track, altitudes: what follows from the fix's own fields."""
-    fix.speed = _sane(fix.speed)
+def _velocities(fix) -> None:  # noqa: ANN001
+    """Sane north/east/down velocities; climb, speed and track from them when missing."""
     fix.vel_n, fix.vel_e, fix.vel_d = _sane(fix.vel_n), _sane(fix.vel_e), _sane(fix.vel_d)
-    fix.climb = _sane(fix.climb)
     if fix.vel_d is not None and fix.climb is None:
         fix.climb = -fix.vel_d
     if fix.vel_n is not None and fix.vel_e is not None:
@@ -96,71 +100,90 @@ def _derived(fix) -> None:  # noqa: ANN001
             fix.speed = math.hypot(fix.vel_n, fix.vel_e)
         if fix.track is None:
             fix.track = math.degrees(math.atan2(fix.vel_e, fix.vel_n))
-    if fix.magvar is not None:
-        if fix.magtrack is None and fix.track is not None:
-            fix.magtrack = fix.track + fix.magvar
-        elif fix.magtrack is not None and fix.track is None:
-            fix.track = fix.magtrack - fix.magvar
-    if fix.track is not None:
-        fix.track = _norm360(fix.track)
-    if fix.magtrack is not None:
+
+
+def _derived(fix) -> None:  # noqa: ANN001
+    """Velocities, track, altitudes: what follows from the fix's own fields."""
+    v = fix.speed
+    if v is not None and abs(v) > _MAX_RATE:  # (False for a deferred speed)
+        fix.speed = None
+    v = fix.climb
+    if v is not None and abs(v) > _MAX_RATE:
+        fix.climb = None
+    if fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
+        _velocities(fix)
+    track, magvar = fix.track, fix.magvar
+    if magvar is not None:
+        if fix.magtrack is None and track is not None:
+            fix.magtrack = track + magvar
+        elif fix.magtrack is not None and track is None:
+            track = fix.magtrack - magvar
+    if track is not None and not 0.0 <= track < 360.0:
+        track = _norm360(track)
+    fix.track = track
+    if fix.magtrack is not None and not 0.0 <= fix.magtrack < 360.0:
         fix.magtrack = _norm360(fix.magtrack)
     sep = fix.geoid_sep
     if sep is not None:
-        if fix.alt_hae is not None and fix.alt_msl is None:
-            fix.alt_msl = fix.alt_hae - sep
-        elif fix.alt_hae is None and fix.alt_msl is not None:
+        if fix.alt_msl is None:
+            if fix.alt_hae is not None:
+                fix.alt_msl = fix.alt_hae - sep
+        elif fix.alt_hae is None:
             fix.alt_hae = fix.alt_msl + sep
 
 
 def error_model(st: Session, new: dict) -> None:
     """Update ``st.fix`` after a merge (``new``: what the sentence itself gave)."""
     fix = st.fix
-    dt = -1.0
-    if fix.time_ns:
-        dt = (fix.time_ns - (st.lastfix.time_ns or 0)) * 1e-9
-        if abs(dt) > 0.0099:
+    t = fix.time_ns
+    if t:
+        dt = (t - (st.lastfix.time_ns or 0)) * 1e-9
+        if dt > 0.0099 or dt < -0.0099:
             st.oldfix = st.lastfix  # time moved on: the last fix is now the previous one
         else:
-            dt = (fix.time_ns - (st.oldfix.time_ns or 0)) * 1e-9
+            dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
+    else:
+        dt = -1.0
     old = st.oldfix
-    h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
-    if fix.lat is None or fix.lon is None or abs(fix.lat) > 90.0 or abs(fix.lon) > 180.0:
+    lat, lon = fix.lat, fix.lon
+    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
         fix.lat = fix.lon = None
     _derived(fix)
-    moved = dt > 0 and fix.mode >= MODE_2D and old.mode >= MODE_2D
+    mode = fix.mode
+    moved = dt > 0 and mode >= MODE_2D and old.mode >= MODE_2D
     if moved:
         if fix.speed is None:
-            d = earth_distance(fix.lat, fix.lon, old.lat, old.lon)
-            fix.speed = None if d is None else _sane(d / dt)
-        if (fix.mode >= MODE_3D and old.mode >= MODE_3D and fix.climb is None
+            fix.speed = DEFERRED
+            fix.speed_args = (fix.lat, fix.lon, old.lat, old.lon, dt)
+        if (mode >= MODE_3D and old.mode >= MODE_3D and fix.climb is None
                 and fix.alt_hae is not None and old.alt_hae is not None):  # fmt: skip
             fix.climb = _sane((fix.alt_hae - old.alt_hae) / dt)
-    if fix.time_ns and fix.ept is None:
+    if t and fix.ept is None:
         fix.ept = 0.005
-    if fix.mode >= MODE_2D:
-        _estimates(st, fix, new, dt, moved, (h_uere, v_uere, p_uere))
-    if fix.time_ns:
-        st.lastfix = fix.snapshot()
+    if mode >= MODE_2D:
+        _estimates(st, fix, new, dt, moved)
+    if t:
+        st.lastfix = fix  # the fix itself: a later sentence without a time copies it first
 
 
-def _estimates(st, fix, new: dict, dt: float, moved: bool, uere) -> None:  # noqa: ANN001
-    h_uere, v_uere, p_uere = uere
+def _estimates(st, fix, new: dict, dt: float, moved: bool) -> None:  # noqa: ANN001
+    h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
     dop = st.sky.dop
-    if "epx" not in new and "xdop" in dop:
-        fix.epx = dop["xdop"] * h_uere
-    if "epy" not in new and "ydop" in dop:
-        fix.epy = dop["ydop"] * h_uere
-    if fix.mode >= MODE_3D and fix.epv is None and "vdop" in dop:
-        fix.epv = dop["vdop"] * v_uere
-    if fix.eph is None and "hdop" in dop:
-        fix.eph = dop["hdop"] * p_uere
-    if fix.sep is None and "pdop" in dop:
-        fix.sep = dop["pdop"] * p_uere
+    if dop:
+        if "xdop" in dop and "epx" not in new:
+            fix.epx = dop["xdop"] * h_uere
+        if "ydop" in dop and "epy" not in new:
+            fix.epy = dop["ydop"] * h_uere
+        if fix.epv is None and fix.mode >= MODE_3D and "vdop" in dop:
+            fix.epv = dop["vdop"] * v_uere
+        if fix.eph is None and "hdop" in dop:
+            fix.eph = dop["hdop"] * p_uere
+        if fix.sep is None and "pdop" in dop:
+            fix.sep = dop["pdop"] * p_uere
     if not moved:
         return
     old = st.oldfix
-    if "eps" not in new and old.epx is not None and old.epy is not None:
+    if old.epx is not None and old.epy is not None and "eps" not in new:
         a, b = _emax(old.epx, old.epy), _emax(fix.epx, fix.epy)
         fix.eps = None if a is None or b is None else (a + b) / dt
     if fix.epd is None:
@@ -169,5 +192,5 @@ def _estimates(st, fix, new: dict, dt: float, moved: bool, uere) -> None:  # noq
             adj = st.distance(old.lat, old.lon, fix.lat, fix.lon)
             if adj is not None and adj > opp:
                 fix.epd = math.degrees(2 * math.asin(opp / math.hypot(adj, opp)))
-    if "epc" not in new and fix.epv is not None and old.epv is not None:
+    if fix.epv is not None and old.epv is not None and "epc" not in new:
         fix.epc = (old.epv + fix.epv) / dt

@@ -35,8 +35,12 @@ STATUS_DR, STATUS_GNSSDR, STATUS_TIME, STATUS_SIM, STATUS_PPS_FIX = 5, 6, 7, 8, 
 FIELDS = (
     "time_ns", "lat", "lon", "alt_hae", "alt_msl", "mode", "status", "track", "magtrack",
     "magvar", "speed", "climb", "ept", "epx", "epy", "epd", "eph", "eps", "sep", "geoid_sep",
-    "epv", "epc", "vel_n", "vel_e", "vel_d", "dgps_age", "dgps_station",
+    "epv", "epc", "vel_n", "vel_e", "vel_d", "dgps_age", "dgps_station", "speed_args",
 )  # fmt: skip
+# The speed of a fix whose speed is the distance from the previous fix over the time
+# between them: computed only when the fix is reported (usually a later sentence of the
+# epoch gives the receiver's own speed first). Not None, so gpsd's "speed known" holds.
+DEFERRED = float("nan")
 
 
 class Fix:
@@ -50,73 +54,53 @@ class Fix:
         self.mode = MODE_NOT_SEEN
         self.status = STATUS_UNK
 
+    def speed_now(self) -> float | None:
+        """The speed, the deferred distance / time computed now."""
+        if self.speed is DEFERRED:
+            from drivers.nmea.errmodel import deferred_speed
+
+            self.speed = deferred_speed(*self.speed_args)
+        return self.speed
+
     def copy(self) -> Fix:
         c = Fix.__new__(Fix)
         for name in FIELDS:
             setattr(c, name, getattr(self, name))
         return c
 
-    def snapshot(self) -> Snapshot:
-        """The fields the next sentences and epochs look back at (gpsd's lastfix/oldfix)."""
-        return Snapshot(self)
-
-
-class Snapshot:
-    """A copy of the fields of a :class:`Fix` that later computations read."""
-
-    __slots__ = ("time_ns", "mode", "lat", "lon", "alt_hae", "alt_msl", "epx", "epy", "epv")
-
-    def __init__(self, f: Fix | None = None) -> None:
-        if f is None:
-            self.time_ns = self.lat = self.lon = self.alt_hae = self.alt_msl = None
-            self.epx = self.epy = self.epv = None
-            self.mode = MODE_NOT_SEEN
-        else:
-            self.time_ns, self.mode, self.lat, self.lon = f.time_ns, f.mode, f.lat, f.lon
-            self.alt_hae, self.alt_msl, self.epx, self.epy, self.epv = (
-                f.alt_hae, f.alt_msl, f.epx, f.epy, f.epv
-            )  # fmt: skip
-
 
 # Fields copied whenever the handler gave them (no mask bit), as gps_merge_fix does.
 _ALWAYS = ("epd", "eph", "eps", "sep", "geoid_sep", "epv")
 
 
+# new-data key -> the mask bit it needs (0: copied whenever given); keys not listed here
+# are the session's (DOPs, GGA's quality and count) or handled below
+_GATE = {
+    "time_ns": TIME_SET, "lat": LATLON_SET, "lon": LATLON_SET, "alt_hae": ALTITUDE_SET,
+    "alt_msl": ALTITUDE_SET, "track": TRACK_SET, "magtrack": MAGNETIC_TRACK_SET,
+    "magvar": MAGNETIC_TRACK_SET, "speed": SPEED_SET, "climb": CLIMB_SET, "vel_n": VNED_SET,
+    "vel_e": VNED_SET, "vel_d": VNED_SET, "epd": 0, "eph": 0, "eps": 0, "sep": 0,
+    "geoid_sep": 0, "epv": 0,
+}  # fmt: skip
+
+
 def merge(to: Fix, mask: int, new: dict) -> None:
     """Merge one sentence's data (``new``, set under ``mask``) into the fix ``to``."""
-    get = new.get
-    if mask & TIME_SET:
-        to.time_ns = get("time_ns")
-    if mask & LATLON_SET:
-        to.lat = get("lat")
-        to.lon = get("lon")
+    gate = _GATE
+    for name, value in new.items():
+        need = gate.get(name)
+        if need is not None and (need == 0 or mask & need):
+            setattr(to, name, value)
+    if mask & TIME_SET and "time_ns" not in new:
+        to.time_ns = None
+    if mask & LATLON_SET and "lat" not in new:
+        to.lat = to.lon = None
     if mask & MODE_SET:
-        to.mode = get("mode", MODE_NOT_SEEN)
+        to.mode = new.get("mode", MODE_NOT_SEEN)
     if mask & STATUS_SET:
-        status = get("status", STATUS_UNK)
+        status = new.get("status", STATUS_UNK)
         if to.status < status:
             to.status = status
-    if mask & ALTITUDE_SET:
-        if "alt_hae" in new:
-            to.alt_hae = new["alt_hae"]
-        if "alt_msl" in new:
-            to.alt_msl = new["alt_msl"]
-    if mask & TRACK_SET:
-        to.track = get("track")
-    if mask & MAGNETIC_TRACK_SET:
-        if "magtrack" in new:
-            to.magtrack = new["magtrack"]
-        if "magvar" in new:
-            to.magvar = new["magvar"]
-    if mask & SPEED_SET:
-        to.speed = get("speed")
-    if mask & CLIMB_SET:
-        to.climb = get("climb")
-    if mask & VNED_SET:
-        to.vel_n, to.vel_e, to.vel_d = get("vel_n"), get("vel_e"), get("vel_d")
-    for name in _ALWAYS:
-        if name in new:
-            setattr(to, name, new[name])
     if "epx" in new and "epy" in new:
         to.epx, to.epy = new["epx"], new["epy"]
     if "dgps_age" in new:

@@ -31,7 +31,6 @@ from drivers.nmea.fixstate import (
     SATELLITE_SET,
     TIME_SET,
     Fix,
-    Snapshot,
     merge,
 )
 from drivers.nmea.sky import Sky
@@ -88,8 +87,10 @@ class Session:
     def __init__(self, rollover_before_year: int | None = None) -> None:
         self.rollover_before_year = rollover_before_year
         self.fix = Fix()
-        self.lastfix = Snapshot()
-        self.oldfix = Snapshot()
+        # gpsd's lastfix (the fix after the last sentence with a time) and oldfix (the
+        # previous epoch's): the fix objects themselves, a new cycle starts a new one
+        self.lastfix = Fix()
+        self.oldfix = self.lastfix
         self.sky = Sky()
         self.date: tuple[int, int, int] | None = None
         self.day = 0  # days since 1970 of the date, plus midnight wraps
@@ -201,13 +202,15 @@ class Session:
             if not mask & DOP_SET:
                 sky.dop.clear()
             fix = self.fix = Fix()
-            self.quality = self.gga_sats = None
+        elif mask & TIME_SET and not new.get("time_ns") and self.lastfix is fix:
+            self.lastfix = fix.copy()  # this sentence leaves the fix without a time            self.quality = self.gga_sats = None
         if "dop" in new:
             sky.dop.update(new["dop"])
         if "quality" in new:
             self.quality, self.gga_sats = new["quality"], new["gga_sats"]
-            sky.used_count = new["used_count"]
-            sky.changed = True
+            if sky.used_count != new["used_count"]:
+                sky.used_count = new["used_count"]
+                sky.changed = True
         merge(fix, mask, new)
         if mask & SATELLITE_SET and sky.view:
             sky.fill_dop()

@@ -82,6 +82,40 @@ def nmea_prn(talker: str, num: int, gnss: int = 0) -> tuple[int, int, int]:
     return 0, 0, 0
 
 
+_GSA_CACHE: dict[tuple[str, tuple[str, ...]], tuple] = {}
+
+
+def _gsa_fields(talker: str, f: tuple[str, ...]) -> tuple[int, bool, dict, tuple[int, ...]]:
+    """What a GSA says, without the session: (mode, whether it sets the mode, its DOPs,
+    the PRNs used). A receiver repeats its GSA from epoch to epoch: the last ones are kept.
+    gpsd reads count - 6 PRN fields, so a NMEA 4.10 GSA (with a system id) reads its PDOP
+    field as one more PRN; so does this."""
+    key = (talker, f)
+    hit = _GSA_CACHE.get(key)
+    if hit is not None:
+        return hit
+    count = len(f) + 1
+    dops = {}
+    if count <= 19:
+        for i, name in ((14, "pdop"), (15, "hdop"), (16, "vdop")):
+            v = fnum(f[i])
+            if v is not None and v < 99.0:
+                dops[name] = v
+    gnss = _TALKER_GNSS.get(talker[1:2], 0)
+    prns = []
+    for i in range(count - 6):
+        num = atoi(f[i + 2])
+        if num >= 1:
+            prn = nmea_prn(talker, num, gnss)[0]
+            if prn > 0:
+                prns.append(prn)
+    out = (atoi(f[1]), f[1][:1] != "E", dops, tuple(prns))
+    if len(_GSA_CACHE) >= 64:
+        _GSA_CACHE.clear()
+    _GSA_CACHE[key] = out
+    return out
+
+
 class Satellite:
     """One satellite of the skyview (gpsd's satellite_t)."""
 
@@ -117,35 +151,23 @@ class Sky:
         last_last = self.last_gsa_talker
         mask = 0
         if count >= 18 and not latch_mode:
-            mode_field = f[1]
-            new["mode"] = atoi(mode_field)
-            if mode_field[:1] != "E":
+            mode, mode_set, dops, prns = _gsa_fields(talker, f)
+            new["mode"] = mode
+            if mode_set:
                 mask = MODE_SET
-            if count <= 19:
-                dop = self.dop
-                for i, name in ((14, "pdop"), (15, "hdop"), (16, "vdop")):
-                    v = fnum(f[i])
-                    if v is not None and v < 99.0:
-                        dop[name] = v
-                        mask |= DOP_SET
+            before = (self.used_prns, self.used_count, dict(self.dop))
+            if dops:
+                self.dop.update(dops)
+                mask |= DOP_SET
             if last_last == "" or (t == last_last and t != "N"):
                 self.used_prns = []
             self.last_gsa_talker = t
             self.seen_gsa.add(t)
-            gnss = _TALKER_GNSS.get(t, 0)
-            used = self.used_prns
-            for i in range(count - 6):
-                num = atoi(f[i + 2])
-                if num < 1:
-                    continue
-                prn = nmea_prn(talker, num, gnss)[0]
-                if prn > 0:
-                    if len(used) >= MAXCHANNELS:
-                        break
-                    used.append(prn)
+            used = self.used_prns = self.used_prns + list(prns[: MAXCHANNELS - len(self.used_prns)])
             self.used_count = len(used)
             mask |= USED_IS
-            self.changed = True
+            if before != (used, self.used_count, self.dop):
+                self.changed = True  # a GSA repeating the last one changes nothing
         if t == "P" and self.seen_gsa & _OTHERS:
             mask = 0
         elif last_last != "N" and t == "N":
