@@ -96,6 +96,10 @@ class IrConverter:
         if len(counts) != cfg.channels or s.adc_bits != cfg.adc_bits:
             self.mismatched += 1
             return None
+        return self.scan(s, counts, stamp_ns)
+
+    def scan(self, s: RawSample, counts: tuple[int, ...], stamp_ns: int) -> IrScan:
+        """The scan of a sample whose channel count and resolution match the board's."""
         try:
             volts = tuple(map(self._volts.__getitem__, counts))
             if len(self._tables) == 1:
@@ -109,7 +113,8 @@ class IrConverter:
             return self._convert(s, stamp_ns)
         if self._median is not None:
             return self._filtered(s, stamp_ns, np.asarray(ranges), volts, status)
-        return IrScan(stamp_ns, s.board_id, s.seq, ranges, status, volts, tuple(map(int, counts)))  # type: ignore[arg-type]
+        raw = tuple(map(int, counts))
+        return IrScan(stamp_ns, s.board_id, s.seq, ranges, status, volts, raw)  # type: ignore[arg-type]
 
     def _filtered(self, s: RawSample, stamp_ns: int, ranges: np.ndarray, volts, status) -> IrScan:  # noqa: ANN001
         codes = np.array([STATUS_NAMES.index(x) for x in status], dtype=np.int8)

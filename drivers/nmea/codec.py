@@ -28,6 +28,7 @@ _HEX2 = {
     for a in "0123456789ABCDEFabcdef"
     for b in "0123456789ABCDEFabcdef"
 }
+_sentence = tuple.__new__  # Sentence(...) without the NamedTuple's Python-level __new__
 _NUMPY_FROM = 512  # bytes from which a run's prefix XOR is computed with numpy
 
 
@@ -104,7 +105,7 @@ class NmeaFramer:
                 or star < 1
                 or line[star] != "*"
                 or len(line) > max_line
-                or "$" in line[1:]
+                or line.find("$", 1) > 0
                 or not line.isprintable()
                 or line[star + 1 :] not in _HEX2
             ):
@@ -121,9 +122,9 @@ class NmeaFramer:
                 continue
             stats.frames_ok += 1
             if address[0] == "P":  # proprietary: $P<maker><type>
-                append(Sentence("P", address[1:], tuple(rest.split(","))))
+                append(_sentence(Sentence, ("P", address[1:], tuple(rest.split(",")))))
             else:
-                append(Sentence(address[:2], address[2:], tuple(rest.split(","))))
+                append(_sentence(Sentence, (address[:2], address[2:], tuple(rest.split(",")))))
 
     def _line(self, line: bytes, out: list[Sentence]) -> None:
         start = line.rfind(b"$")
@@ -200,7 +201,7 @@ class NmeaCodec:
 
     def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix | GpsSky]:
         out: list[GpsFix | GpsSky] = []
-        add = self.combiner.add
+        add = self.combiner.add_into
         session = self.combiner.session
         before = session.malformed
         for talker, kind, fields in self.framer.feed(data):
@@ -209,7 +210,7 @@ class NmeaCodec:
             if kind not in HANDLERS:
                 self.ignored += 1
                 continue
-            out.extend(add(talker, kind, fields, stamp_ns))
+            add(talker, kind, fields, stamp_ns, out)
         self.stats.malformed += session.malformed - before
         return out
 

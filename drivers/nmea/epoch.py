@@ -89,8 +89,10 @@ def iso_time(ns: int | None) -> str:
     return _LAST[1]
 
 
-def _opt(v: float | None, shown: bool) -> float | None:
-    return v if shown else None
+# What a fix without a 2D (3D) fix, or a GST of another second, shows: nothing.
+_NO_2D = (None,) * 17
+_NO_3D = (None,) * 6
+_NO_GST = (None,) * 7
 
 
 class EpochCombiner:
@@ -114,8 +116,15 @@ class EpochCombiner:
 
     def add(self, talker: str, kind: str, fields: tuple[str, ...], stamp_ns: int) -> list:
         """One sentence (``kind`` "GGA", ...; proprietary ones "PGRMZ") -> messages."""
-        st = self.session
         out: list = []
+        self.add_into(talker, kind, fields, stamp_ns, out)
+        return out
+
+    def add_into(
+        self, talker: str, kind: str, fields: tuple[str, ...], stamp_ns: int, out: list
+    ) -> None:
+        """:meth:`add`, appending the messages to ``out``."""
+        st = self.session
         mask, new = st.parse(talker, kind, fields)
         if mask & CLEAR_IS:
             self._close(out)
@@ -137,7 +146,6 @@ class EpochCombiner:
             self._last_timed = kind
             if kind == self._ender and not self._reported:
                 self._report(out)
-        return out
 
     def flush(self) -> list:
         """The pending epoch's fix and sky (end of a stream), if not reported yet."""
@@ -195,64 +203,37 @@ class EpochCombiner:
 
     def _fix(self, f: Fix) -> GpsFix:
         st = self.session
-        has_fix = f.mode >= MODE_2D
-        in_3d = f.mode >= MODE_3D
-        lat = f.lat if has_fix else None
-        lon = f.lon if has_fix else None
+        mode = f.mode
         east = north = None
-        if lat is not None and lon is not None:
-            if self.datum is None:
-                self.datum = Datum(lat, lon)
-            east, north = self.datum.to_local(lat, lon)
-        tod = None if f.time_ns is None else f.time_ns % DAY_NS
-        gst = st.gst if st.gst is not None and st.gst_tod == tod else (None,) * 7
-        dop = st.sky.dop
-        quality = st.quality if st.quality is not None else (1 if has_fix else 0)
-        sats = st.gga_sats if st.gga_sats is not None else st.sky.used_count or None
-        timed = f.time_ns is not None
-        return GpsFix(
-            stamp_ns=self._stamp_ns,
-            time_utc=iso_time(f.time_ns),
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_msl_m=_opt(f.alt_msl, has_fix),
-            geoid_sep_m=_opt(f.geoid_sep, in_3d),
-            mode=f.mode,
-            quality=quality,
-            satellites=sats,
-            hdop=dop.get("hdop"),
-            pdop=dop.get("pdop"),
-            vdop=dop.get("vdop"),
-            speed_mps=_opt(f.speed_now(), has_fix),
-            course_deg=_opt(f.track, has_fix),
-            std_lat_m=gst[4],
-            std_lon_m=gst[5],
-            std_alt_m=gst[6],
-            east_m=east,
-            north_m=north,
-            talker=self._talker,
-            status=f.status,
-            alt_hae_m=_opt(f.alt_hae, has_fix),
-            climb_mps=_opt(f.climb, in_3d),
-            eph_m=_opt(f.eph, has_fix),
-            epv_m=_opt(f.epv, has_fix),
-            epx_m=_opt(f.epx, has_fix),
-            epy_m=_opt(f.epy, has_fix),
-            sep_m=_opt(f.sep, has_fix),
-            ept_s=_opt(f.ept, timed),
-            eps_mps=_opt(f.eps, has_fix),
-            epc_mps=_opt(f.epc, in_3d),
-            epd_deg=_opt(f.epd, has_fix),
-            magvar_deg=_opt(f.magvar, has_fix),
-            magtrack_deg=_opt(f.magtrack, has_fix),
-            dgps_age_s=_opt(f.dgps_age, has_fix),
-            dgps_station=f.dgps_station if has_fix else None,
-            vel_n_mps=_opt(f.vel_n, in_3d),
-            vel_e_mps=_opt(f.vel_e, in_3d),
-            vel_d_mps=_opt(f.vel_d, in_3d),
-            leap_seconds=st.leap_seconds,
-            gst_rms_m=gst[0],
-            gst_major_m=gst[1],
-            gst_minor_m=gst[2],
-            gst_orient_deg=gst[3],
+        if mode >= MODE_2D:
+            lat, lon = f.lat, f.lon
+            if lat is not None and lon is not None:
+                if self.datum is None:
+                    self.datum = Datum(lat, lon)
+                east, north = self.datum.to_local(lat, lon)
+            fix2d = (lat, lon, f.alt_msl, f.speed_now(), f.track, f.alt_hae, f.eph, f.epv, f.epx,
+                     f.epy, f.sep, f.eps, f.epd, f.magvar, f.magtrack, f.dgps_age,
+                     f.dgps_station)  # fmt: skip
+        else:
+            fix2d = _NO_2D
+        if mode >= MODE_3D:
+            fix3d = (f.geoid_sep, f.climb, f.epc, f.vel_n, f.vel_e, f.vel_d)
+        else:
+            fix3d = _NO_3D
+        (lat, lon, alt_msl, speed, track, alt_hae, eph, epv, epx, epy, sep, eps, epd, magvar,
+         magtrack, dgps_age, dgps_station) = fix2d  # fmt: skip
+        geoid_sep, climb, epc, vel_n, vel_e, vel_d = fix3d
+        t = f.time_ns
+        gst = (
+            st.gst if st.gst is not None and t is not None and st.gst_tod == t % DAY_NS else _NO_GST
         )
+        dop = st.sky.dop
+        quality = st.quality if st.quality is not None else (1 if mode >= MODE_2D else 0)
+        sats = st.gga_sats if st.gga_sats is not None else st.sky.used_count or None
+        return GpsFix(
+            self._stamp_ns, iso_time(t), lat, lon, alt_msl, geoid_sep, mode, quality, sats,
+            dop.get("hdop"), dop.get("pdop"), dop.get("vdop"), speed, track, gst[4], gst[5],
+            gst[6], east, north, self._talker, f.status, alt_hae, climb, eph, epv, epx, epy,
+            sep, f.ept if t is not None else None, eps, epc, epd, magvar, magtrack, dgps_age,
+            dgps_station, vel_n, vel_e, vel_d, st.leap_seconds, gst[0], gst[1], gst[2], gst[3],
+        )  # fmt: skip

@@ -28,14 +28,14 @@ def fnum(s: str) -> float | None:
     """gpsd's safe_atof; None for NaN (empty, nothing numeric) and for infinities."""
     if not s:
         return None
-    if s[0] in _START and "_" not in s:
-        try:
-            v = float(s)
-        except ValueError:
-            v = _prefix_float(s)
-    else:
+    try:
+        v = float(s)  # Python reads what safe_atof reads, and more: checked below
+    except ValueError:
         v = _prefix_float(s)
-    if v is None or v != v or v in (math.inf, -math.inf):
+    else:
+        if "_" in s or s[0] not in _START:  # 1_0, " 5", "nan", "inf": read as gpsd does
+            v = _prefix_float(s)
+    if v is None or v - v != 0.0:  # NaN or infinite
         return None
     return v
 
@@ -92,13 +92,18 @@ def _parse_hhmmss(s: str) -> int | None:
     if h > 23 or m > 59 or sec > 60:
         return None
     ns = 0
-    rest = s[6:]
-    if rest[:1] == "." and rest[1:2].isdigit():
-        digits = rest[1:]
-        lead = _INT.match(digits)
-        if lead is not None and len(digits) <= 9:
-            ns = int(lead.group(1)) * 10 ** (9 - len(digits))
+    if s[6:7] == "." and s[7:8].isdigit():
+        digits = s[7:]
+        if len(digits) <= 9:
+            if digits.isdigit() and digits.isascii():
+                ns = int(digits) * _POW10[9 - len(digits)]
+            else:
+                lead = _INT.match(digits)
+                ns = int(lead.group(1)) * _POW10[9 - len(digits)] if lead else 0
     return ((h * 60 + m) * 60 + sec) * 1_000_000_000 + ns
+
+
+_POW10 = tuple(10**k for k in range(10))
 
 
 def ddmmyy(s: str) -> tuple[int, int, int] | None:
@@ -116,6 +121,9 @@ def _degrees(field: str) -> float | None:
     whole, dot, frac = field.partition(".")
     if not dot:
         return None
+    if whole.isdigit() and frac.isdigit() and field.isascii():  # the usual field
+        minutes = int(whole)
+        return (minutes - minutes // 100 * 40 + float("." + frac)) * (1.0 / 60.0)
     m = _INT.match(whole)
     if m is None or m.end() != len(whole):
         if whole:
