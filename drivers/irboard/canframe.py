@@ -121,24 +121,42 @@ class CanSampleDecoder:
     def __post_init__(self) -> None:
         self.stats = CodecStats()
         self._last: tuple[int, bytes] | None = None
+        self._sample_id = SAMPLE_ID_BASE + self.board_id
+        self._mask = (1 << self.adc_bits) - 1
+        # data length -> bit offsets of the channels (None: no channel count fits)
+        self._shifts = {
+            dlc: None if (lay := _layout(dlc, self.adc_bits)) is None else lay[1]
+            for dlc in range(9)
+        }
 
     def feed_frame(self, arb_id: int, data: bytes, is_extended: bool = False) -> RawSample | None:
-        if is_extended or arb_id != SAMPLE_ID_BASE + self.board_id:
+        got = self.feed_counts(arb_id, data, is_extended)
+        return None if got is None else RawSample(self.board_id, got[0], self.adc_bits, got[1])
+
+    def feed_counts(
+        self, arb_id: int, data: bytes, is_extended: bool = False
+    ) -> tuple[int, tuple[int, ...]] | None:
+        """:meth:`feed_frame` as (sequence number, counts), without the RawSample."""
+        if is_extended or arb_id != self._sample_id:
             return None  # someone else's frame on a shared bus: not an error
         data = bytes(data)
-        s = unpack_sample(arb_id, data, self.adc_bits)
-        if s is None:
+        shifts = self._shifts.get(len(data))
+        if shifts is None:
             self.stats.bytes_skipped += len(data)
             self.stats.bad_checksums += 1
             return None
-        if self._last is not None:
-            if self._last == (s.seq, data):
+        v = int.from_bytes(data, "little")
+        mask = self._mask
+        seq = v & 0xF
+        last = self._last
+        if last is not None:
+            if last[0] == seq and last[1] == data:
                 self.stats.duplicates += 1
                 return None
-            self.stats.frames_lost += (s.seq - self._last[0] - 1) & 0xF
-        self._last = (s.seq, data)
+            self.stats.frames_lost += (seq - last[0] - 1) & 0xF
+        self._last = (seq, data)
         self.stats.frames_ok += 1
-        return s
+        return seq, tuple([(v >> shift) & mask for shift in shifts])
 
 
 # A CAN frame as logged (msgs.RawBytes of the IR device on CAN): the arbitration id as 4

@@ -88,7 +88,9 @@ class IrConverter:
         cfg = self.config
         w = cfg.median_window
         self._median = MedianFilter(cfg.channels, w) if w > 1 else None
-        self._volts, self._tables = _tables(cfg.adc_bits, cfg.vref_v, cfg.curves)
+        self._volts, self._tables, triples = _tables(cfg.adc_bits, cfg.vref_v, cfg.curves)
+        # count -> (volts, range, status): the one-curve case without a median filter
+        self._triples = triples if self._median is None else None
 
     def __call__(self, s: RawSample, stamp_ns: int) -> IrScan | None:
         cfg = self.config
@@ -97,6 +99,19 @@ class IrConverter:
             self.mismatched += 1
             return None
         return self.scan(s, counts, stamp_ns)
+
+    def scan_counts(
+        self, board_id: int, seq: int, counts: tuple[int, ...], stamp_ns: int
+    ) -> IrScan | None:
+        """:meth:`__call__` of a decoder's (sequence, counts) at the board's resolution: one
+        look-up per channel when one curve serves every channel and there is no median."""
+        if self._triples is None or len(counts) != self.config.channels:
+            return self(RawSample(board_id, seq, self.config.adc_bits, counts), stamp_ns)
+        try:
+            volts, ranges, status = zip(*map(self._triples.__getitem__, counts), strict=True)
+        except KeyError:
+            return self(RawSample(board_id, seq, self.config.adc_bits, counts), stamp_ns)
+        return IrScan(stamp_ns, board_id, seq, ranges, status, volts, counts)  # type: ignore[arg-type]
 
     def scan(self, s: RawSample, counts: tuple[int, ...], stamp_ns: int) -> IrScan:
         """The scan of a sample whose channel count and resolution match the board's."""
@@ -159,9 +174,12 @@ class IrConverter:
 
 
 @lru_cache(maxsize=16)
-def _tables(adc_bits: int, vref_v: float, curves: tuple[SharpCurve, ...]) -> tuple[dict, list]:
-    """count -> volts, and per curve (count -> range, count -> status name), for every count
-    of the resolution (one curve: the datasheet's on every channel)."""
+def _tables(
+    adc_bits: int, vref_v: float, curves: tuple[SharpCurve, ...]
+) -> tuple[dict, list, dict | None]:
+    """count -> volts, per curve (count -> range, count -> status name), and with one curve
+    count -> (volts, range, status), for every count of the resolution (one curve: the
+    datasheet's on every channel)."""
     full = (1 << adc_bits) - 1
     volts = np.arange(full + 1, dtype=float) * (vref_v / full)
     out = []
@@ -170,7 +188,12 @@ def _tables(adc_bits: int, vref_v: float, curves: tuple[SharpCurve, ...]) -> tup
         out.append(
             (dict(enumerate(float(x) for x in r)), dict(enumerate(STATUS_NAMES[k] for k in st)))
         )
-    return dict(enumerate(float(v) for v in volts)), out
+    vt = dict(enumerate(float(v) for v in volts))
+    triples = None
+    if len(out) == 1:
+        rt, st = out[0]
+        triples = {c: (v, rt[c], st[c]) for c, v in vt.items()}
+    return vt, out, triples
 
 
 def volts_to_counts(volts: np.ndarray, adc_bits: int, vref_v: float) -> np.ndarray:
