@@ -32,11 +32,6 @@ MODE_NOT_SEEN, MODE_NO_FIX, MODE_2D, MODE_3D = 0, 1, 2, 3
 STATUS_UNK, STATUS_GPS, STATUS_DGPS, STATUS_RTK_FIX, STATUS_RTK_FLT = 0, 1, 2, 3, 4
 STATUS_DR, STATUS_GNSSDR, STATUS_TIME, STATUS_SIM, STATUS_PPS_FIX = 5, 6, 7, 8, 9
 
-FIELDS = (
-    "time_ns", "lat", "lon", "alt_hae", "alt_msl", "mode", "status", "track", "magtrack",
-    "magvar", "speed", "climb", "ept", "epx", "epy", "epd", "eph", "eps", "sep", "geoid_sep",
-    "epv", "epc", "vel_n", "vel_e", "vel_d", "dgps_age", "dgps_station", "speed_args",
-)  # fmt: skip
 # The speed of a fix whose speed is the distance from the previous fix over the time
 # between them: computed only when the fix is reported (usually a later sentence of the
 # epoch gives the receiver's own speed first). Not None, so gpsd's "speed known" holds.
@@ -44,15 +39,16 @@ DEFERRED = float("nan")
 
 
 class Fix:
-    """gpsd's fix record (None = not known). ``time_ns``: UTC, ns since 1970."""
+    """gpsd's fix record (None = not known). ``time_ns``: UTC, ns since 1970.
 
-    __slots__ = FIELDS
+    The fields are class attributes (all None) until set, so a new cycle's fix costs
+    nothing to make and a copy is a copy of what was set."""
 
-    def __init__(self) -> None:
-        for name in FIELDS:
-            setattr(self, name, None)
-        self.mode = MODE_NOT_SEEN
-        self.status = STATUS_UNK
+    time_ns = lat = lon = alt_hae = alt_msl = track = magtrack = magvar = speed = None
+    climb = ept = epx = epy = epd = eph = eps = sep = geoid_sep = epv = epc = None
+    vel_n = vel_e = vel_d = dgps_age = dgps_station = speed_args = None
+    mode = MODE_NOT_SEEN
+    status = STATUS_UNK
 
     def speed_now(self) -> float | None:
         """The speed, the deferred distance / time computed now."""
@@ -63,14 +59,9 @@ class Fix:
         return self.speed
 
     def copy(self) -> Fix:
-        c = Fix.__new__(Fix)
-        for name in FIELDS:
-            setattr(c, name, getattr(self, name))
+        c = Fix()
+        c.__dict__.update(self.__dict__)
         return c
-
-
-# Fields copied whenever the handler gave them (no mask bit), as gps_merge_fix does.
-_ALWAYS = ("epd", "eph", "eps", "sep", "geoid_sep", "epv")
 
 
 # new-data key -> the mask bit it needs (0: copied whenever given); keys not listed here
@@ -84,24 +75,36 @@ _GATE = {
 }  # fmt: skip
 
 
-def merge(to: Fix, mask: int, new: dict) -> None:
-    """Merge one sentence's data (``new``, set under ``mask``) into the fix ``to``."""
+def merge(to: Fix, mask: int, new: dict) -> bool:
+    """Merge one sentence's data (``new``, set under ``mask``) into the fix ``to``; whether
+    anything in it changed."""
     gate = _GATE
+    changed = False
     for name, value in new.items():
         need = gate.get(name)
-        if need is not None and (need == 0 or mask & need):
+        if need is not None and (need == 0 or mask & need) and getattr(to, name) != value:
             setattr(to, name, value)
-    if mask & TIME_SET and "time_ns" not in new:
-        to.time_ns = None
-    if mask & LATLON_SET and "lat" not in new:
+            changed = True
+    if mask & TIME_SET and "time_ns" not in new and to.time_ns is not None:
+        to.time_ns, changed = None, True
+    if mask & LATLON_SET and "lat" not in new and to.lat is not None:
         to.lat = to.lon = None
+        changed = True
     if mask & MODE_SET:
-        to.mode = new.get("mode", MODE_NOT_SEEN)
+        mode = new.get("mode", MODE_NOT_SEEN)
+        if to.mode != mode:
+            to.mode, changed = mode, True
     if mask & STATUS_SET:
         status = new.get("status", STATUS_UNK)
         if to.status < status:
-            to.status = status
+            to.status, changed = status, True
     if "epx" in new and "epy" in new:
         to.epx, to.epy = new["epx"], new["epy"]
-    if "dgps_age" in new:
+        changed = True
+    if "dgps_age" in new and (to.dgps_age, to.dgps_station) != (
+        new["dgps_age"],
+        new["dgps_station"],
+    ):
         to.dgps_age, to.dgps_station = new["dgps_age"], new["dgps_station"]
+        changed = True
+    return changed

@@ -36,6 +36,8 @@ from drivers.nmea.fixstate import (
 from drivers.nmea.sky import Sky
 
 ROLLOVER_S = 1024 * 7 * 86400
+# estimates a sentence may give itself (the error model then keeps them)
+_ESTIMATES = frozenset(("epx", "epy", "eps", "epc"))
 DAY_NS = 86_400 * 1_000_000_000
 
 Handler = Callable[..., int]
@@ -69,6 +71,13 @@ HANDLERS: dict[str, tuple[Handler, int, int]] = {
     "PSTI": (p.psti, 2, 15),
 }
 TYPES = tuple(k for k in HANDLERS if not k.startswith("P"))
+
+
+def _unnormed(fix: Fix) -> bool:
+    """A track outside 0-360 degrees: gpsd's error model moves it by 360 each run (so it is
+    not the same after another run)."""
+    t, m = fix.track, fix.magtrack
+    return (t is not None and not 0.0 <= t < 360.0) or (m is not None and not 0.0 <= m < 360.0)
 
 
 def days_from_civil(y: int, m: int, d: int) -> int:
@@ -109,6 +118,7 @@ class Session:
         self.quality: int | None = None  # this cycle's GGA: fix quality, satellites used
         self.gga_sats: int | None = None
         self._dist: tuple[tuple, float | None] = ((), None)
+        self._dops: tuple = ()  # the DOPs the error model last saw
 
     # ------------------------------------------------------------ for handlers
     def merge_hhmmss(self, field: str) -> bool:
@@ -195,15 +205,22 @@ class Session:
 
     def apply(self, mask: int, new: dict) -> None:
         """Merge a parsed sentence into the fix (a new cycle clears it first), then the
-        DOPs of a complete GSV set and the error model."""
+        DOPs of a complete GSV set and the error model. The error model is a function of
+        the fix, the DOPs and the previous fixes: when a sentence changed none of them
+        (a repeated GSA, a ZDA of the same second, a GST) running it again would change
+        nothing (but a track still outside 0-360 degrees, which gpsd moves by 360 a run),
+        and it is skipped."""
         sky = self.sky
         fix = self.fix
+        changed = False
         if mask & CLEAR_IS:
             if not mask & DOP_SET:
                 sky.dop.clear()
             fix = self.fix = Fix()
+            self.quality = self.gga_sats = None
+            changed = True
         elif mask & TIME_SET and not new.get("time_ns") and self.lastfix is fix:
-            self.lastfix = fix.copy()  # this sentence leaves the fix without a time            self.quality = self.gga_sats = None
+            self.lastfix = fix.copy()  # this sentence leaves the fix without a time
         if "dop" in new:
             sky.dop.update(new["dop"])
         if "quality" in new:
@@ -211,10 +228,14 @@ class Session:
             if sky.used_count != new["used_count"]:
                 sky.used_count = new["used_count"]
                 sky.changed = True
-        merge(fix, mask, new)
+        if merge(fix, mask, new):
+            changed = True
         if mask & SATELLITE_SET and sky.view:
             sky.fill_dop()
-        error_model(self, new)
+        dops = tuple(sky.dop.items())
+        if changed or dops != self._dops or new.keys() & _ESTIMATES or _unnormed(fix):
+            self._dops = dops
+            error_model(self, new)
 
     def _had_altitude(self) -> bool:
         last, old = self.lastfix, self.oldfix
