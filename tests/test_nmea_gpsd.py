@@ -161,3 +161,13 @@ def test_a_gps_fix_of_an_old_log_still_decodes():
     assert fix.lat_deg == 1.0 and fix.status == 0 and fix.alt_hae_m is None
     sky = GpsSky(1, satellites=(), n_sat=0, u_sat=0)
     assert decode(GpsSky, encode(sky)) == sky
+
+
+def test_an_epoch_without_gga_does_not_keep_the_last_ggas_quality():
+    fixes, _ = run(
+        "GPGGA,120000.00,4500.0000,N,00700.0000,E,2,08,0.9,100.0,M,47.0,M,,",
+        RMC_DATE,
+        "GPRMC,120001.00,A,4500.0000,N,00700.0000,E,0.0,0.0,010126,,,A",
+    )
+    # the satellites used stay (gpsd's count persists until a GGA or GSA changes it)
+    assert [(f.quality, f.satellites) for f in fixes] == [(2, 8), (1, 8)]
