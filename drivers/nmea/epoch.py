@@ -4,23 +4,25 @@ The sentences go through a :class:`~drivers.nmea.session.Session`, which keeps t
 as gpsd would (mode from the last sentence that sets one, position from the last sentence
 that gives one, GSA's mode over GGA's, altitude from GGA, GNS or PGRMZ, error estimates,
 climb, ...). An epoch ends where gpsd's does: at a sentence whose time of day differs from
-the last one registered. The fix is reported at the epoch's "cycle ender", the type of the
-last timed sentence of the previous epoch (learned as gpsd learns it), so a live stream
-reports each fix without waiting a whole period; an epoch not reported that way (the
-first one, or an irregular receiver), or changed by sentences after its ender (a GSA, a
-GSV set), is reported (again) when the next epoch starts or at
-:meth:`EpochCombiner.flush`: the last fix of an epoch is its final state, which is what
-gpsd last reports for it. Sentences gpsd reports no fix for (a GSV set, PGRME, GBS) do
-not make an epoch report again, and what they change (error estimates) is not in its
-report, as in gpsd's last one. The sky is reported with the fix when a GGA, a GSA or a complete
-GSV set changed it, or when the epoch ends.
+the last one registered.
 
-A GpsFix holds what gpsd's TPV would print: position, altitudes, track, speed and error
-estimates only with a fix (mode 2 or 3), climb, geoid separation and vertical velocity
-only in 3D; the time only once a date is known (RMC, ZDA). ``quality`` and
-``satellites`` are the epoch's GGA (without one: 1 with a fix, and GSA's count);
-``std_*`` and the ``gst_*`` fields come from a GST of the same second. Local metres are
-about the configured datum, or the first fix's position when none is configured.
+When: the fix is reported at the epoch's "cycle ender", the type of the last timed
+sentence of the previous epoch (learned as gpsd learns it), so a live stream reports each
+fix without waiting a whole period. An epoch not reported that way (the first one, or an
+irregular receiver), or changed after its ender by a sentence that sets fix data (a GSA's
+mode, a PGRMZ altitude), is reported (again) when the next epoch starts or at
+:meth:`EpochCombiner.flush`. Sentences gpsd reports no fix for (a GSV set, PGRME, GBS)
+after that do not change the epoch's report, as they do not change gpsd's last one. The
+sky is reported with the fix when a GGA, a GSA or a complete GSV set changed it, or when
+the epoch ends.
+
+What: a GpsFix holds what gpsd's TPV would print: position, altitudes, track, speed and
+error estimates only with a fix (mode 2 or 3), climb, geoid separation and vertical
+velocity only in 3D; the time only once a date is known (RMC, ZDA). ``quality`` is the
+epoch's GGA fix quality (without a GGA: 1 with a fix, else 0); ``satellites`` the GGA's
+count, else the number used gpsd keeps (GSA's or an earlier GGA's); ``std_*`` and the
+``gst_*`` fields come from a GST of the same second. Local metres are about the
+configured datum, or the first fix's position when none is configured.
 """
 
 from __future__ import annotations
