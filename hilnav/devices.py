@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hilnav.config import RobotConfig, ir_board_config
-from msgs import GpsFix, GyroSample, IrScan, RobotInfo, RobotOdometry
+from msgs import GpsFix, GpsSky, GyroSample, IrScan, RobotInfo, RobotOdometry
 
 RawHook = Callable[[bytes, int], None] | None
 
@@ -200,7 +200,7 @@ _TABLE = (
            usb_ids=("16d0:117e", "0403:ffa8"), usb_words=("canable", "slcan", "can adapter")),
     Device("gyro", "CruzCore gyro", (GyroSample,),
            _gyro_driver, _gyro_codec, _gyro_emulator, _port("gyro")),
-    Device("gps", "NMEA GPS receiver", (GpsFix,),
+    Device("gps", "NMEA GPS receiver", (GpsFix, GpsSky),
            _gps_driver, _gps_codec, _gps_emulator, _port("gps"),
            # u-blox receivers (5 to 9), and words receivers put in their USB description
            usb_ids=("1546:01a5", "1546:01a6", "1546:01a7", "1546:01a8", "1546:01a9"),

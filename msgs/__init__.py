@@ -14,7 +14,7 @@ from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
 from msgs.relative import RelativeMeasurement
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
-from msgs.sensors import GpsFix, GyroSample, IrScan, IrStatus
+from msgs.sensors import GpsFix, GpsSatellite, GpsSky, GyroSample, IrScan, IrStatus
 from numerics.angles import wrap_angle
 
 __all__ = [
@@ -23,6 +23,8 @@ __all__ = [
     "DecodeError",
     "DeviceDiagnostics",
     "GpsFix",
+    "GpsSatellite",
+    "GpsSky",
     "GroundTruth",
     "GyroSample",
     "HeadingEstimate",

@@ -174,6 +174,7 @@ def test_sigterm_exits_0_with_a_closed_log_of_every_topic(running):
         "/r1/odometry": "hilnav.RobotOdometry",
         "/r1/gyro": "hilnav.GyroSample",
         "/r1/gps": "hilnav.GpsFix",
+        "/r1/sky": "hilnav.GpsSky",
         "/r1/ir": "hilnav.IrScan",
         "/r1/heading": "hilnav.HeadingEstimate",
         "/r1/pose": "hilnav.PoseEstimate",

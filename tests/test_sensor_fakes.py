@@ -24,18 +24,19 @@ from fakes.runner import FakeRunner
 from fakes.world import World
 from fakes.world.gps_model import GpsErrorModel
 from fakes.world.gyro_model import GyroErrorModel
-from msgs import Pose2D
+from msgs import GpsFix, Pose2D
 from tests.conftest import HILNAV, hilnav_env
 
 T0 = dt.datetime(2026, 3, 1, 12, 0, 0, tzinfo=dt.UTC)
 _can_channels = itertools.count()
 
 
-def _collect(driver, seconds: float, want: int | None = None) -> list:
+def _collect(driver, seconds: float, want: int | None = None, cls: type = object) -> list:
+    """A driver's messages (of class ``cls``) for ``seconds`` or until ``want`` of them."""
     out: list = []
     end = time.monotonic() + seconds
     while time.monotonic() < end and (want is None or len(out) < want):
-        out += driver.read(0.1)
+        out += [m for m in driver.read(0.1) if isinstance(m, cls)]
     return out
 
 
@@ -138,7 +139,7 @@ def test_gps_driver_reads_truth_with_noise_at_10_hz(rig):
     d = NmeaDriver(gps.ports()["gps"], datum=DEFAULT_DATUM)
     d.open()
     try:
-        fixes = _collect(d, 1.2)
+        fixes = _collect(d, 1.2, cls=GpsFix)
         assert len(fixes) >= 8
         times = [dt.datetime.fromisoformat(f.time_utc.replace("Z", "+00:00")) for f in fixes]
         steps = {round((b - a).total_seconds(), 2) for a, b in zip(times, times[1:], strict=False)}
@@ -249,14 +250,16 @@ def test_slcan_adapter_protocol():
 def test_replay_as_fast_as_possible_matches_the_log(shared_dir, tmp_path):
     log = shared_dir / "data/gpsd/mt3339.log"
     expected = NmeaCodec()
-    want = expected.feed(log.read_bytes(), 0) + expected.flush()
+    want = [
+        m for m in expected.feed(log.read_bytes(), 0) + expected.flush() if isinstance(m, GpsFix)
+    ]
     runner = FakeRunner(World.from_name("open_field"), link_dir=tmp_path)
     rep = runner.add(NmeaReplayEmulator(log, fast=True))
     runner.start()
     try:
         d = NmeaDriver(rep.ports()["gps"])
         d.open()
-        got = _collect(d, 3.0, want=len(want) - 1)
+        got = _collect(d, 3.0, want=len(want) - 1, cls=GpsFix)
         d.close()
     finally:
         runner.stop()
@@ -283,7 +286,7 @@ def test_replay_keeps_the_logs_own_pace(tmp_path):
         d = NmeaDriver(rep.ports()["gps"])
         d.open()
         t0 = time.monotonic()
-        got = _collect(d, 2.0, want=4)
+        got = _collect(d, 2.0, want=4, cls=GpsFix)
         took = time.monotonic() - t0
         d.close()
     finally:

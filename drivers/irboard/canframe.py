@@ -36,11 +36,28 @@ def dlc_for(channels: int, adc_bits: int) -> int:
     return (SEQ_BITS + channels * adc_bits + 7) // 8
 
 
-def channels_for_dlc(dlc: int, adc_bits: int) -> int | None:
+def _channels_for_dlc(dlc: int, adc_bits: int) -> int | None:
     for n in range(1, max_channels(adc_bits) + 1):
         if dlc_for(n, adc_bits) == dlc:
             return n
     return None
+
+
+# (dlc, adc_bits) -> (channel count, bit offset of each channel); None: no count fits
+_LAYOUTS: dict[tuple[int, int], tuple[int, tuple[int, ...]] | None] = {}
+
+
+def _layout(dlc: int, adc_bits: int) -> tuple[int, tuple[int, ...]] | None:
+    key = (dlc, adc_bits)
+    if key not in _LAYOUTS:
+        n = _channels_for_dlc(dlc, adc_bits)
+        _LAYOUTS[key] = None if n is None else (n, tuple(SEQ_BITS + k * adc_bits for k in range(n)))
+    return _LAYOUTS[key]
+
+
+def channels_for_dlc(dlc: int, adc_bits: int) -> int | None:
+    layout = _layout(dlc, adc_bits)
+    return None if layout is None else layout[0]
 
 
 def pack_sample(s: RawSample) -> tuple[int, bytes]:
@@ -66,12 +83,12 @@ def unpack_sample(arb_id: int, data: bytes, adc_bits: int) -> RawSample | None:
     board = arb_id - SAMPLE_ID_BASE
     if not 0 <= board <= MAX_BOARD_ID:
         return None
-    n = channels_for_dlc(len(data), adc_bits)
-    if n is None:
+    layout = _layout(len(data), adc_bits)
+    if layout is None:
         return None
     v = int.from_bytes(data, "little")
     mask = (1 << adc_bits) - 1
-    counts = tuple((v >> (SEQ_BITS + k * adc_bits)) & mask for k in range(n))
+    counts = tuple([(v >> shift) & mask for shift in layout[1]])
     return RawSample(board, v & 0xF, adc_bits, counts)
 
 
@@ -104,24 +121,42 @@ class CanSampleDecoder:
     def __post_init__(self) -> None:
         self.stats = CodecStats()
         self._last: tuple[int, bytes] | None = None
+        self._sample_id = SAMPLE_ID_BASE + self.board_id
+        self._mask = (1 << self.adc_bits) - 1
+        # data length -> bit offsets of the channels (None: no channel count fits)
+        self._shifts = {
+            dlc: None if (lay := _layout(dlc, self.adc_bits)) is None else lay[1]
+            for dlc in range(9)
+        }
 
     def feed_frame(self, arb_id: int, data: bytes, is_extended: bool = False) -> RawSample | None:
-        if is_extended or arb_id != SAMPLE_ID_BASE + self.board_id:
+        got = self.feed_counts(arb_id, data, is_extended)
+        return None if got is None else RawSample(self.board_id, got[0], self.adc_bits, got[1])
+
+    def feed_counts(
+        self, arb_id: int, data: bytes, is_extended: bool = False
+    ) -> tuple[int, tuple[int, ...]] | None:
+        """:meth:`feed_frame` as (sequence number, counts), without the RawSample."""
+        if is_extended or arb_id != self._sample_id:
             return None  # someone else's frame on a shared bus: not an error
         data = bytes(data)
-        s = unpack_sample(arb_id, data, self.adc_bits)
-        if s is None:
+        shifts = self._shifts.get(len(data))
+        if shifts is None:
             self.stats.bytes_skipped += len(data)
             self.stats.bad_checksums += 1
             return None
-        if self._last is not None:
-            if self._last == (s.seq, data):
+        v = int.from_bytes(data, "little")
+        mask = self._mask
+        seq = v & 0xF
+        last = self._last
+        if last is not None:
+            if last[0] == seq and last[1] == data:
                 self.stats.duplicates += 1
                 return None
-            self.stats.frames_lost += (s.seq - self._last[0] - 1) & 0xF
-        self._last = (s.seq, data)
+            self.stats.frames_lost += (seq - last[0] - 1) & 0xF
+        self._last = (seq, data)
         self.stats.frames_ok += 1
-        return s
+        return seq, tuple([(v >> shift) & mask for shift in shifts])
 
 
 # A CAN frame as logged (msgs.RawBytes of the IR device on CAN): the arbitration id as 4

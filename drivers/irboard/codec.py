@@ -48,10 +48,11 @@ class IrCanCodec:
     def feed_frame(
         self, arb_id: int, data: bytes, stamp_ns: int, is_extended: bool = False
     ) -> IrScan | None:
-        s = self.decoder.feed_frame(arb_id, data, is_extended)
-        if s is None:
+        got = self.decoder.feed_counts(arb_id, data, is_extended)
+        if got is None:
             return None
-        scan = self.converter(s, stamp_ns)
+        seq, counts = got
+        scan = self.converter.scan_counts(self.config.board_id, seq, counts, stamp_ns)
         if scan is None:
             self.stats.malformed += 1
         return scan

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -72,20 +73,81 @@ _DEFAULT_CURVE = SharpCurve()
 
 @dataclass
 class IrConverter:
-    """Stateful (median filter) conversion of raw samples into scans."""
+    """Stateful (median filter) conversion of raw samples into scans.
+
+    Table-driven: at construction every possible count (0 .. 2**adc_bits - 1) is turned
+    into volts, range and status once, with the same numpy arithmetic the per-sample
+    path uses, so a sample is three table look-ups per channel and the outputs are
+    identical. Counts outside the tables (which no decoder yields) take the numpy path.
+    """
 
     config: IrBoardConfig = field(default_factory=IrBoardConfig)
     mismatched: int = 0  # samples whose channel count or resolution differ from the config
 
     def __post_init__(self) -> None:
-        w = self.config.median_window
-        self._median = MedianFilter(self.config.channels, w) if w > 1 else None
+        cfg = self.config
+        w = cfg.median_window
+        self._median = MedianFilter(cfg.channels, w) if w > 1 else None
+        self._volts, self._tables, triples = _tables(cfg.adc_bits, cfg.vref_v, cfg.curves)
+        # count -> (volts, range, status): the one-curve case without a median filter
+        self._triples = triples if self._median is None else None
 
     def __call__(self, s: RawSample, stamp_ns: int) -> IrScan | None:
         cfg = self.config
-        if len(s.counts) != cfg.channels or s.adc_bits != cfg.adc_bits:
+        counts = s.counts
+        if len(counts) != cfg.channels or s.adc_bits != cfg.adc_bits:
             self.mismatched += 1
             return None
+        return self.scan(s, counts, stamp_ns)
+
+    def scan_counts(
+        self, board_id: int, seq: int, counts: tuple[int, ...], stamp_ns: int
+    ) -> IrScan | None:
+        """:meth:`__call__` of a decoder's (sequence, counts) at the board's resolution: one
+        look-up per channel when one curve serves every channel and there is no median."""
+        if self._triples is None or len(counts) != self.config.channels:
+            return self(RawSample(board_id, seq, self.config.adc_bits, counts), stamp_ns)
+        try:
+            volts, ranges, status = zip(*map(self._triples.__getitem__, counts), strict=True)
+        except KeyError:
+            return self(RawSample(board_id, seq, self.config.adc_bits, counts), stamp_ns)
+        return IrScan(stamp_ns, board_id, seq, ranges, status, volts, counts)  # type: ignore[arg-type]
+
+    def scan(self, s: RawSample, counts: tuple[int, ...], stamp_ns: int) -> IrScan:
+        """The scan of a sample whose channel count and resolution match the board's."""
+        try:
+            volts = tuple(map(self._volts.__getitem__, counts))
+            if len(self._tables) == 1:
+                rt, st = self._tables[0]
+                ranges = tuple(map(rt.__getitem__, counts))
+                status = tuple(map(st.__getitem__, counts))
+            else:
+                ranges = tuple(t[0][c] for t, c in zip(self._tables, counts, strict=True))
+                status = tuple(t[1][c] for t, c in zip(self._tables, counts, strict=True))
+        except (KeyError, TypeError):
+            return self._convert(s, stamp_ns)
+        if self._median is not None:
+            return self._filtered(s, stamp_ns, np.asarray(ranges), volts, status)
+        raw = tuple(map(int, counts))
+        return IrScan(stamp_ns, s.board_id, s.seq, ranges, status, volts, raw)  # type: ignore[arg-type]
+
+    def _filtered(self, s: RawSample, stamp_ns: int, ranges: np.ndarray, volts, status) -> IrScan:  # noqa: ANN001
+        codes = np.array([STATUS_NAMES.index(x) for x in status], dtype=np.int8)
+        ranges = self._median(np.where(codes == 0, ranges, np.nan))  # type: ignore[misc]
+        codes = np.where(np.isfinite(ranges), 0, codes).astype(np.int8)
+        return IrScan(
+            stamp_ns=stamp_ns,
+            board_id=s.board_id,
+            seq=s.seq,
+            ranges_m=tuple(float(r) for r in ranges),
+            status=tuple(STATUS_NAMES[int(k)] for k in codes),  # type: ignore[misc]
+            voltages_v=tuple(volts),
+            raw_counts=tuple(int(c) for c in s.counts),
+        )
+
+    def _convert(self, s: RawSample, stamp_ns: int) -> IrScan:
+        """The per-sample numpy path (counts the tables do not hold)."""
+        cfg = self.config
         counts = np.asarray(s.counts, dtype=float)
         volts = counts * (cfg.vref_v / ((1 << cfg.adc_bits) - 1))
         if cfg.curves:
@@ -96,18 +158,42 @@ class IrConverter:
                 ranges[i], status[i] = r[0], st[0]
         else:
             ranges, status = _DEFAULT_CURVE.range(volts)
+        names = tuple(STATUS_NAMES[int(k)] for k in status)
+        vv = tuple(float(v) for v in volts)
         if self._median is not None:
-            ranges = self._median(np.where(status == 0, ranges, np.nan))
-            status = np.where(np.isfinite(ranges), 0, status).astype(np.int8)
+            return self._filtered(s, stamp_ns, ranges, vv, names)
         return IrScan(
             stamp_ns=stamp_ns,
             board_id=s.board_id,
             seq=s.seq,
             ranges_m=tuple(float(r) for r in ranges),
-            status=tuple(STATUS_NAMES[int(k)] for k in status),  # type: ignore[misc]
-            voltages_v=tuple(float(v) for v in volts),
+            status=names,  # type: ignore[arg-type]
+            voltages_v=vv,
             raw_counts=tuple(int(c) for c in s.counts),
         )
+
+
+@lru_cache(maxsize=16)
+def _tables(
+    adc_bits: int, vref_v: float, curves: tuple[SharpCurve, ...]
+) -> tuple[dict, list, dict | None]:
+    """count -> volts, per curve (count -> range, count -> status name), and with one curve
+    count -> (volts, range, status), for every count of the resolution (one curve: the
+    datasheet's on every channel)."""
+    full = (1 << adc_bits) - 1
+    volts = np.arange(full + 1, dtype=float) * (vref_v / full)
+    out = []
+    for curve in curves or (_DEFAULT_CURVE,):
+        r, st = curve.range(volts)
+        out.append(
+            (dict(enumerate(float(x) for x in r)), dict(enumerate(STATUS_NAMES[k] for k in st)))
+        )
+    vt = dict(enumerate(float(v) for v in volts))
+    triples = None
+    if len(out) == 1:
+        rt, st = out[0]
+        triples = {c: (v, rt[c], st[c]) for c, v in vt.items()}
+    return vt, out, triples
 
 
 def volts_to_counts(volts: np.ndarray, adc_bits: int, vref_v: float) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""NMEA 0183 GPS: sentences, epoch combiner into :class:`msgs.GpsFix`, local metres."""
+"""NMEA 0183 GPS: sentences, gpsd's rules for combining them into :class:`msgs.GpsFix` and
+:class:`msgs.GpsSky`, local metres."""
 
 from drivers.nmea.codec import NmeaCodec, NmeaFramer
 from drivers.nmea.epoch import ROLLOVER_S, EpochCombiner

@@ -1,4 +1,4 @@
-"""NMEA byte stream -> sentences -> :class:`msgs.GpsFix` (the GPS codec).
+"""NMEA byte stream -> sentences -> :class:`msgs.GpsFix` and :class:`msgs.GpsSky`.
 
 Framing: a sentence starts at ``$`` and ends at LF (CR optional). A line is dropped and
 counted when it is overlong (over ``max_line`` bytes from ``$`` to the checksum, CR and LF
@@ -7,19 +7,41 @@ not counted; default 128: Skytraq's PSTI sentences are 108), holds non-printable
 with ``require_checksum=False``. A sentence cut short by the start of the next
 (``$GPGGA,12$GPRMC,...``) is dropped and the next one kept, so the codec is back in step
 within one sentence. Bytes outside sentences are skipped and counted. A sentence of a
-supported type whose fields do not parse is counted in ``stats.malformed``. NMEA has no
-sequence numbers: a lost sentence cannot be counted.
+decoded type with fewer fields than gpsd accepts, or a date out of range, is counted in
+``stats.malformed``. NMEA has no sequence numbers: a lost sentence cannot be counted.
 """
 
 from __future__ import annotations
 
+import numpy as np
+
 from drivers.base import CodecStats
 from drivers.nmea.epoch import EpochCombiner
 from drivers.nmea.local import Datum
-from drivers.nmea.sentences import PARSERS, Sentence
-from msgs import GpsFix
+from drivers.nmea.sentences import Sentence
+from drivers.nmea.session import HANDLERS
+from msgs import GpsFix, GpsSky
 
 _HEX = frozenset(b"0123456789ABCDEFabcdef")
+_HEX2 = {
+    f"{a}{b}": int(f"{a}{b}", 16)
+    for a in "0123456789ABCDEFabcdef"
+    for b in "0123456789ABCDEFabcdef"
+}
+_sentence = tuple.__new__  # Sentence(...) without the NamedTuple's Python-level __new__
+_NUMPY_FROM = 512  # bytes from which a run's prefix XOR is computed with numpy
+
+
+def _prefix_xor(data: bytes) -> bytes:
+    """p[i] = data[0] ^ ... ^ data[i] (as bytes); p[j] ^ p[i] is the XOR of data[i+1..j]."""
+    if len(data) >= _NUMPY_FROM:
+        return np.bitwise_xor.accumulate(np.frombuffer(data, dtype=np.uint8)).tobytes()
+    out = bytearray(len(data))
+    c = 0
+    for i, b in enumerate(data):
+        c ^= b
+        out[i] = c
+    return bytes(out)
 
 
 class NmeaFramer:
@@ -38,15 +60,11 @@ class NmeaFramer:
         buf = self._buf
         buf += data
         out: list[Sentence] = []
-        pos = 0
-        while True:
-            nl = buf.find(b"\n", pos)
-            if nl < 0:
-                break
-            self._line(bytes(buf[pos:nl]), out)
-            pos = nl + 1
-        if pos:
-            del buf[:pos]
+        end = buf.rfind(b"\n")
+        if end >= 0:
+            region = bytes(buf[:end])
+            del buf[: end + 1]
+            self._lines(region, out)
         # A pending CR is the end of the line, not part of it: it does not count.
         limit = self.max_line + (buf[-1:] == b"\r")
         if len(buf) > limit:
@@ -60,6 +78,53 @@ class NmeaFramer:
             self.stats.resyncs += 1
             del buf[:cut]
         return out
+
+    def _lines(self, region: bytes, out: list[Sentence]) -> None:
+        """Every line of a run of complete lines. The usual line (``$...*HH``, printable
+        ASCII, short enough) is checked here with the XOR of the whole run computed at once
+        (a prefix XOR: a line's checksum is two look-ups); any other goes to :meth:`_line`."""
+        if not region.isascii():
+            for line in region.split(b"\n"):
+                self._line(line, out)
+            return
+        text = region.decode("ascii")
+        prefix = _prefix_xor(region)
+        max_line = self.max_line
+        stats = self.stats
+        pos = 0
+        append = out.append
+        for line in text.split("\n"):
+            n = len(line)
+            start, at = pos, pos
+            pos += n + 1
+            if line[-1:] == "\r":
+                line = line[:-1]
+            star = len(line) - 3
+            if (
+                line[:1] != "$"
+                or star < 1
+                or line[star] != "*"
+                or len(line) > max_line
+                or line.find("$", 1) > 0
+                or not line.isprintable()
+                or line[star + 1 :] not in _HEX2
+            ):
+                self._line(region[start : start + n], out)
+                continue
+            c = prefix[at + star - 1] ^ prefix[at]  # XOR of the bytes between '$' and '*'
+            if c != _HEX2[line[star + 1 :]]:
+                stats.bad_checksums += 1
+                stats.bytes_skipped += len(line)
+                continue
+            address, _, rest = line[1:star].partition(",")
+            if len(address) < 3 or not address.isalnum():
+                stats.bytes_skipped += len(line)
+                continue
+            stats.frames_ok += 1
+            if address[0] == "P":  # proprietary: $P<maker><type>
+                append(_sentence(Sentence, ("P", address[1:], tuple(rest.split(",")))))
+            else:
+                append(_sentence(Sentence, (address[:2], address[2:], tuple(rest.split(",")))))
 
     def _line(self, line: bytes, out: list[Sentence]) -> None:
         start = line.rfind(b"$")
@@ -114,7 +179,8 @@ class NmeaFramer:
 
 
 class NmeaCodec:
-    """Bytes -> :class:`msgs.GpsFix`, one per epoch (see :mod:`drivers.nmea.epoch`)."""
+    """Bytes -> :class:`msgs.GpsFix` per epoch and :class:`msgs.GpsSky` when the sky
+    changed (see :mod:`drivers.nmea.epoch`)."""
 
     def __init__(
         self,
@@ -126,30 +192,28 @@ class NmeaCodec:
         self.framer = NmeaFramer(require_checksum, max_line)
         self.combiner = EpochCombiner(datum, rollover_before_year)
         self.stats = self.framer.stats
-        self.ignored = 0  # well-formed sentences of types we do not use (GSV, GLL, ...)
+        self.ignored = 0  # well-formed sentences of types not decoded (TXT, ...)
 
     @property
     def malformed(self) -> int:
-        """Sentences of supported types whose fields do not parse (``stats.malformed``)."""
+        """Sentences of decoded types whose fields do not parse (``stats.malformed``)."""
         return self.stats.malformed
 
-    def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix]:
-        out: list[GpsFix] = []
-        for s in self.framer.feed(data):
-            parser = PARSERS.get(s.type)
-            if parser is None:
+    def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix | GpsSky]:
+        out: list[GpsFix | GpsSky] = []
+        add = self.combiner.add_into
+        session = self.combiner.session
+        before = session.malformed
+        for talker, kind, fields in self.framer.feed(data):
+            if talker == "P":
+                kind = "P" + kind
+            if kind not in HANDLERS:
                 self.ignored += 1
                 continue
-            try:
-                rec = parser(s.fields)
-            except (ValueError, IndexError):
-                rec = None
-            if rec is None:
-                self.stats.malformed += 1
-                continue
-            out.extend(self.combiner.add(s.talker, s.type, rec, stamp_ns))
+            add(talker, kind, fields, stamp_ns, out)
+        self.stats.malformed += session.malformed - before
         return out
 
-    def flush(self) -> list[GpsFix]:
-        """The last epoch's fix at the end of a stream."""
+    def flush(self) -> list[GpsFix | GpsSky]:
+        """The last epoch's fix (and sky) at the end of a stream."""
         return self.combiner.flush()

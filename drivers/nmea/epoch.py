@@ -1,166 +1,241 @@
-"""Combine the sentences of one NMEA epoch into one :class:`msgs.GpsFix`, as gpsd would.
+"""Report NMEA epochs as :class:`msgs.GpsFix` (gpsd's TPV) and :class:`msgs.GpsSky` (SKY).
 
-An epoch is the set of sentences sharing one UTC time of day (GSA and VTG carry no time
-and join the epoch of the sentence before them). An epoch is reported when the next one
-starts, or at once when the sentence type that ended the previous epoch arrives (the
-"cycle ender", learned as gpsd does), so a live stream reports each fix without waiting a
-whole period; if more sentences of the same epoch follow, an updated fix is reported.
+The sentences go through a :class:`~drivers.nmea.session.Session`, which keeps the fix
+as gpsd would (mode from the last sentence that sets one, position from the last sentence
+that gives one, GSA's mode over GGA's, altitude from GGA, GNS or PGRMZ, error estimates,
+climb, ...). An epoch ends where gpsd's does: at a sentence whose time of day differs from
+the last one registered.
 
-Mode follows gpsd (0 unknown, 1 no fix, 2 2D, 3 3D): GGA decides when present (quality
-0 -> no fix; a fix with altitude and satellites in use -> 3D, else 2D); otherwise GSA's
-mode; otherwise RMC's status (A -> 2D at least, V -> no fix). Position and altitude are
-reported only with a fix (mode >= 2). The date comes from the latest RMC or ZDA, so fixes
-before the first date have no ``time_utc``. Local metres are about the configured datum,
-or the first fix's position when none is configured.
+When: the fix is reported at the epoch's "cycle ender", the type of the last timed
+sentence of the previous epoch (learned as gpsd learns it), so a live stream reports each
+fix without waiting a whole period. An epoch not reported that way (the first one, or an
+irregular receiver), or changed after its ender by a sentence that sets fix data (a GSA's
+mode, a PGRMZ altitude), is reported (again) when the next epoch starts or at
+:meth:`EpochCombiner.flush`. Sentences gpsd reports no fix for (a GSV set, PGRME, GBS)
+after that do not change the epoch's report, as they do not change gpsd's last one. The
+sky is reported with the fix when a GGA, a GSA or a complete GSV set changed it, or when
+the epoch ends.
+
+What: a GpsFix holds what gpsd's TPV would print: position, altitudes, track, speed and
+error estimates only with a fix (mode 2 or 3), climb, geoid separation and vertical
+velocity only in 3D; the time only once a date is known (RMC, ZDA). ``quality`` is the
+epoch's GGA fix quality (without a GGA: 1 with a fix, else 0); ``satellites`` the GGA's
+count, else the number used gpsd keeps (GSA's or an earlier GGA's); ``std_*`` and the
+``gst_*`` fields come from a GST of the same second. Local metres are about the
+configured datum, or the first fix's position when none is configured.
 """
 
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import dataclass, field
+from dataclasses import replace
 
+from drivers.nmea.fixstate import (
+    ALTITUDE_SET,
+    CLEAR_IS,
+    CLIMB_SET,
+    LATLON_SET,
+    MAGNETIC_TRACK_SET,
+    MODE_2D,
+    MODE_3D,
+    MODE_SET,
+    SATELLITE_SET,
+    SPEED_SET,
+    STATUS_SET,
+    TIME_SET,
+    TRACK_SET,
+    VNED_SET,
+    Fix,
+)
 from drivers.nmea.local import Datum
-from drivers.nmea.sentences import GGA, GSA, GST, RMC, VTG, ZDA, Record
-from msgs import GpsFix
+from drivers.nmea.session import DAY_NS, ROLLOVER_S, Session
+from msgs import GpsFix, GpsSatellite, GpsSky
 
-# gpsd moves dates before this forward by 1024 weeks when asked (week-counter rollover).
-ROLLOVER_S = 1024 * 7 * 86400
+__all__ = ["ROLLOVER_S", "EpochCombiner", "iso_time"]
+
+# Sentences whose time of day marks their place in the cycle (gpsd's cycle enders).
+_TIMED = frozenset(("GGA", "RMC", "GLL", "GNS", "GBS", "ZDA", "PSTI", "PGRMF"))
+_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
+# What a sentence must set for its epoch to have a fix to report.
+_FIX_BITS = (TIME_SET | LATLON_SET | MODE_SET | STATUS_SET | ALTITUDE_SET | TRACK_SET
+             | MAGNETIC_TRACK_SET | SPEED_SET | CLIMB_SET | VNED_SET)  # fmt: skip
 
 
-@dataclass
-class _Epoch:
-    time_ms: int | None = None
-    stamp_ns: int = 0
-    talker: str = ""
-    gga: GGA | None = None
-    rmc: RMC | None = None
-    gsa: GSA | None = None
-    vtg: VTG | None = None
-    gst: GST | None = None
-    types: list[str] = field(default_factory=list)
-    dirty: bool = False
+_DAYS: dict[int, str] = {}
+_LAST: list = [None, ""]  # the last time formatted (a fix and its sky share it)
+
+
+def iso_time(ns: int | None) -> str:
+    """ISO 8601 UTC with milliseconds, rounded as gpsd rounds; "" for None or out of range."""
+    if ns is None or ns < 0:
+        return ""
+    if ns == _LAST[0]:
+        return _LAST[1]
+    ms = (ns + 500_000) // 1_000_000
+    day, ms_of_day = divmod(ms, 86_400_000)
+    date = _DAYS.get(day)
+    if date is None:
+        try:
+            t = _EPOCH + dt.timedelta(days=day)
+        except OverflowError:
+            return ""
+        if t.year > 9999:
+            return ""
+        date = _DAYS[day] = f"{t.year:04d}-{t.month:02d}-{t.day:02d}T"
+        if len(_DAYS) > 64:
+            _DAYS.clear()
+    s, milli = divmod(ms_of_day, 1000)
+    m, s = divmod(s, 60)
+    h, m = divmod(m, 60)
+    _LAST[:] = [ns, f"{date}{h:02d}:{m:02d}:{s:02d}.{milli:03d}Z"]
+    return _LAST[1]
+
+
+# What a fix without a 2D (3D) fix, or a GST of another second, shows: nothing.
+_NO_2D = (None,) * 17
+_NO_3D = (None,) * 6
+_NO_GST = (None,) * 7
 
 
 class EpochCombiner:
-    """Feed typed records in order; get fixes back (see module docstring)."""
+    """Feed sentences in order; get fixes and skies back (see module docstring)."""
 
     def __init__(self, datum: Datum | None = None, rollover_before_year: int | None = None) -> None:
         self.datum = datum
-        self.rollover_before_year = rollover_before_year
-        self._date: tuple[int, int, int] | None = None
-        self._ep = _Epoch()
+        self.session = Session(rollover_before_year)
         self._ender: str | None = None
+        self._last_timed: str | None = None
+        self._reported = False
+        self._pending = False  # the epoch has sentences not yet reported
+        self._last_fix: GpsFix | None = None  # this epoch's last reported fix
+        self._snap: Fix | None = None  # the fix before sentences gpsd does not report
+        self._stamp_ns = 0
+        self._talker = ""
 
-    def add(self, talker: str, kind: str, rec: Record, stamp_ns: int) -> list[GpsFix]:
-        out: list[GpsFix] = []
-        t = getattr(rec, "time_ms", None)
-        ep = self._ep
-        if t is not None and ep.time_ms is not None and t != ep.time_ms and ep.types:
-            if ep.dirty:
-                out.append(self._fix(ep))
-            self._ender = ep.types[-1]
-            ep = self._ep = _Epoch()
-        if t is not None:
-            ep.time_ms = t
-        ep.stamp_ns = stamp_ns
-        ep.talker = talker
-        ep.types.append(kind)
-        ep.dirty = True
-        if isinstance(rec, GGA):
-            ep.gga = rec
-        elif isinstance(rec, RMC):
-            ep.rmc = rec
-            if rec.date:
-                self._date = rec.date
-        elif isinstance(rec, GSA):
-            ep.gsa = rec
-        elif isinstance(rec, VTG):
-            ep.vtg = rec
-        elif isinstance(rec, GST):
-            ep.gst = rec
-        elif isinstance(rec, ZDA) and rec.date:
-            self._date = rec.date
-        if kind == self._ender:
-            out.append(self._fix(ep))
+    @property
+    def rollover_before_year(self) -> int | None:
+        return self.session.rollover_before_year
+
+    def add(self, talker: str, kind: str, fields: tuple[str, ...], stamp_ns: int) -> list:
+        """One sentence (``kind`` "GGA", ...; proprietary ones "PGRMZ") -> messages."""
+        out: list = []
+        self.add_into(talker, kind, fields, stamp_ns, out)
         return out
 
-    def flush(self) -> list[GpsFix]:
-        """The pending epoch's fix (end of a stream), if it was not reported yet."""
-        ep = self._ep
-        if ep.types and ep.dirty:
-            return [self._fix(ep)]
-        return []
+    def add_into(
+        self, talker: str, kind: str, fields: tuple[str, ...], stamp_ns: int, out: list
+    ) -> None:
+        """:meth:`add`, appending the messages to ``out``."""
+        st = self.session
+        mask, new = st.parse(talker, kind, fields)
+        if mask & CLEAR_IS:
+            self._close(out)
+            self._ender = self._last_timed
+            self._last_timed = None
+            self._reported = False
+        worthy = mask & _FIX_BITS
+        if not worthy and self._pending and self._snap is None and (mask & SATELLITE_SET or new):
+            self._snap = st.fix.copy()  # the fix as gpsd last reported it (see module doc)
+        st.apply(mask, new)
+        self._stamp_ns = stamp_ns
+        if kind != "GSV" and kind != "GSA":
+            self._talker = talker
+        if worthy:
+            self._pending = True
+            self._snap = None
+        timed = st.latch_frac or (kind == "ZDA" and "time_ns" in new)
+        if timed and kind in _TIMED:
+            self._last_timed = kind
+            if kind == self._ender and not self._reported:
+                self._report(out)
+
+    def flush(self) -> list:
+        """The pending epoch's fix and sky (end of a stream), if not reported yet."""
+        out: list = []
+        self._close(out)
+        return out
 
     # ------------------------------------------------------------------
-    def _mode(self, ep: _Epoch) -> int:
-        if ep.gga is not None:
-            g = ep.gga
-            if g.quality == 0 or g.lat is None or g.lon is None:
-                return 1
-            if g.alt_msl is not None and g.satellites != 0:
-                return 3
-            return 2
-        if ep.gsa is not None and ep.gsa.mode is not None:
-            return ep.gsa.mode
-        if ep.rmc is not None:
-            return 2 if ep.rmc.valid and ep.rmc.lat is not None else 1
-        return 0
+    def _close(self, out: list) -> None:
+        """The end of an epoch: its fix if not reported, or reported before later sentences
+        of the epoch changed it; its sky if it changed."""
+        if self._pending:
+            self._report(out)
+        elif self.session.sky.changed:
+            out.append(self._sky())
+        self._last_fix = None
 
-    def _time(self, ep: _Epoch) -> str:
-        if ep.time_ms is None or self._date is None:
-            return ""
-        y, m, d = self._date
-        try:
-            t = dt.datetime(y, m, d, tzinfo=dt.UTC) + dt.timedelta(milliseconds=ep.time_ms)
-            if self.rollover_before_year is not None and y < self.rollover_before_year:
-                t += dt.timedelta(seconds=ROLLOVER_S)
-        except (ValueError, OverflowError):  # 30 February; past year 9999
-            return ""
-        return f"{t.year:04d}" + t.strftime("-%m-%dT%H:%M:%S.") + f"{t.microsecond // 1000:03d}Z"
+    def _report(self, out: list) -> None:
+        fix = self._fix(self._snap or self.session.fix)
+        self._snap = None
+        last = self._last_fix
+        if last is None or replace(last, stamp_ns=fix.stamp_ns) != fix:
+            out.append(fix)
+            self._last_fix = fix
+        if self.session.sky.changed:
+            out.append(self._sky())
+        self._reported = True
+        self._pending = False
 
-    def _fix(self, ep: _Epoch) -> GpsFix:
-        ep.dirty = False
-        mode = self._mode(ep)
-        g, r, s, v, st = ep.gga, ep.rmc, ep.gsa, ep.vtg, ep.gst
-        lat = lon = alt = sep = None
-        if mode >= 2:
-            if g is not None and g.lat is not None and g.lon is not None:
-                lat, lon = g.lat, g.lon
-            elif r is not None:
-                lat, lon = r.lat, r.lon
-            if g is not None:
-                alt = g.alt_msl
-                sep = g.geoid_sep
-        speed = course = None
-        if r is not None and r.valid:
-            speed, course = r.speed_mps, r.course_deg
-        if v is not None and v.faa != "N":
-            speed = v.speed_mps if v.speed_mps is not None else speed
-            course = v.course_deg if v.course_deg is not None else course
-        east = north = None
-        if lat is not None and lon is not None:
-            if self.datum is None:
-                self.datum = Datum(lat, lon)
-            east, north = self.datum.to_local(lat, lon)
-        return GpsFix(
-            stamp_ns=ep.stamp_ns,
-            time_utc=self._time(ep),
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_msl_m=alt,
-            geoid_sep_m=sep,
-            mode=mode,
-            quality=g.quality if g is not None else (1 if mode >= 2 else 0),
-            satellites=g.satellites if g is not None else (len(s.used) if s else None),
-            hdop=(g.hdop if g is not None and g.hdop is not None else (s.hdop if s else None)),
-            pdop=s.pdop if s else None,
-            vdop=s.vdop if s else None,
-            speed_mps=speed,
-            course_deg=course,
-            std_lat_m=st.std_lat if st else None,
-            std_lon_m=st.std_lon if st else None,
-            std_alt_m=st.std_alt if st else None,
-            east_m=east,
-            north_m=north,
-            talker=ep.talker,
+    def _sky(self) -> GpsSky:
+        st = self.session
+        sky = st.sky
+        sky.changed = False
+        sats = tuple(
+            GpsSatellite(s.prn, s.gnss_id, s.sv_id, s.elevation, s.azimuth, s.ss, s.used)
+            for s in sky.view
+            if s.prn
         )
+        d = sky.dop
+        return GpsSky(
+            stamp_ns=self._stamp_ns,
+            time_utc=iso_time(st.fix.time_ns),
+            satellites=sats,
+            n_sat=len(sats) if sky.complete else None,
+            u_sat=sky.used_count,
+            hdop=d.get("hdop"),
+            vdop=d.get("vdop"),
+            pdop=d.get("pdop"),
+            xdop=d.get("xdop"),
+            ydop=d.get("ydop"),
+            tdop=d.get("tdop"),
+            gdop=d.get("gdop"),
+            talker=self._talker,
+        )
+
+    def _fix(self, f: Fix) -> GpsFix:
+        st = self.session
+        mode = f.mode
+        east = north = None
+        if mode >= MODE_2D:
+            lat, lon = f.lat, f.lon
+            if lat is not None and lon is not None:
+                if self.datum is None:
+                    self.datum = Datum(lat, lon)
+                east, north = self.datum.to_local(lat, lon)
+            fix2d = (lat, lon, f.alt_msl, f.speed_now(), f.track, f.alt_hae, f.eph, f.epv, f.epx,
+                     f.epy, f.sep, f.eps, f.epd, f.magvar, f.magtrack, f.dgps_age,
+                     f.dgps_station)  # fmt: skip
+        else:
+            fix2d = _NO_2D
+        if mode >= MODE_3D:
+            fix3d = (f.geoid_sep, f.climb, f.epc, f.vel_n, f.vel_e, f.vel_d)
+        else:
+            fix3d = _NO_3D
+        (lat, lon, alt_msl, speed, track, alt_hae, eph, epv, epx, epy, sep, eps, epd, magvar,
+         magtrack, dgps_age, dgps_station) = fix2d  # fmt: skip
+        geoid_sep, climb, epc, vel_n, vel_e, vel_d = fix3d
+        t = f.time_ns
+        gst = (
+            st.gst if st.gst is not None and t is not None and st.gst_tod == t % DAY_NS else _NO_GST
+        )
+        dop = st.sky.dop
+        quality = st.quality if st.quality is not None else (1 if mode >= MODE_2D else 0)
+        sats = st.gga_sats if st.gga_sats is not None else st.sky.used_count or None
+        return GpsFix(
+            self._stamp_ns, iso_time(t), lat, lon, alt_msl, geoid_sep, mode, quality, sats,
+            dop.get("hdop"), dop.get("pdop"), dop.get("vdop"), speed, track, gst[4], gst[5],
+            gst[6], east, north, self._talker, f.status, alt_hae, climb, eph, epv, epx, epy,
+            sep, f.ept if t is not None else None, eps, epc, epd, magvar, magtrack, dgps_age,
+            dgps_station, vel_n, vel_e, vel_d, st.leap_seconds, gst[0], gst[1], gst[2], gst[3],
+        )  # fmt: skip

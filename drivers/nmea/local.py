@@ -20,6 +20,13 @@ class Datum:
     lat_deg: float
     lon_deg: float
 
+    def __post_init__(self) -> None:
+        m, n = self.radii
+        # the radii and cos(lat), computed once (to_local multiplies in the same order)
+        object.__setattr__(self, "_m", m)
+        object.__setattr__(self, "_n", n)
+        object.__setattr__(self, "_cos", math.cos(math.radians(self.lat_deg)))
+
     @property
     def radii(self) -> tuple[float, float]:
         """(meridian radius M, prime-vertical radius N) in metres at the datum."""
@@ -31,10 +38,9 @@ class Datum:
 
     def to_local(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
         """(east, north) metres of a point."""
-        m, n = self.radii
         dlon = (lon_deg - self.lon_deg + 180.0) % 360.0 - 180.0
-        east = math.radians(dlon) * n * math.cos(math.radians(self.lat_deg))
-        north = math.radians(lat_deg - self.lat_deg) * m
+        east = math.radians(dlon) * self._n * self._cos  # type: ignore[attr-defined]
+        north = math.radians(lat_deg - self.lat_deg) * self._m  # type: ignore[attr-defined]
         return east, north
 
     def to_geodetic(self, east_m: float, north_m: float) -> tuple[float, float]:

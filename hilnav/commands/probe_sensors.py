@@ -1,5 +1,8 @@
 """``hilnav probe ir|gyro|gps PORT``: the sensor drivers' messages as JSON lines.
 
+``hilnav probe gps PORT --json`` prints gpsd's objects instead (``{"class":"TPV",...}``,
+SKY, GST: :mod:`drivers.nmea.gpsd_json`), one per line.
+
 PORT is a device path, ``tcp://HOST:PORT`` or a file of recorded bytes; for an IR board on
 CAN it is ``INTERFACE:CHANNEL`` (``slcan:/dev/ttyACM0``, ``socketcan:can0``,
 ``virtual:NAME``).
@@ -16,10 +19,11 @@ from typing import Any
 
 from drivers.base import DeviceError
 from drivers.nmea import Datum
+from drivers.nmea.gpsd_json import gpsd_objects
 from hilnav.config import ConfigError, Geometry, RobotConfig, parse_config
 from hilnav.devices import DEVICES
 from hilnav.errors import CliError
-from msgs import GpsFix, GyroSample, IrScan, to_dict
+from msgs import GpsFix, GpsSky, GyroSample, IrScan, to_dict
 
 
 def register_sensors(dev: argparse._SubParsersAction) -> None:
@@ -56,7 +60,7 @@ def register_sensors(dev: argparse._SubParsersAction) -> None:
     gy.add_argument("--no-reset", action="store_true", help="do not re-zero the angle")
     gy.set_defaults(func=probe_gyro)
 
-    gp = dev.add_parser("gps", parents=[common], help="an NMEA GPS: one object per fix")
+    gp = dev.add_parser("gps", parents=[common], help="an NMEA GPS: one object per fix and per sky")
     gp.add_argument(
         "--baud",
         type=int,
@@ -68,6 +72,12 @@ def register_sensors(dev: argparse._SubParsersAction) -> None:
         "--no-checksum-ok",
         action="store_true",
         help="also accept sentences that carry no *hh checksum (some old receivers)",
+    )
+    gp.add_argument(
+        "--json",
+        dest="gpsd_json",
+        action="store_true",
+        help="gpsd's JSON objects (TPV, SKY, GST) with gpsd's names and units",
     )
     gp.set_defaults(func=probe_gps)
 
@@ -97,15 +107,18 @@ def gps_json(f: GpsFix) -> dict[str, Any]:
     return _clean(out)
 
 
-def _json(m: Any) -> dict[str, Any] | None:
+def _json(m: Any) -> list[dict[str, Any]]:
     if isinstance(m, GpsFix):
-        return gps_json(m)
-    if isinstance(m, (GyroSample, IrScan)):
-        return _clean(to_dict(m))
-    return None
+        return [gps_json(m)]
+    if isinstance(m, (GyroSample, IrScan, GpsSky)):
+        return [_clean(to_dict(m))]
+    return []
 
 
 def _loop(driver: Any, args: argparse.Namespace) -> int:
+    gpsd = getattr(args, "gpsd_json", False)
+    as_json = gpsd_objects if gpsd else _json
+    seps = (",", ":") if gpsd else None  # gpsd's compact form
     stop: list[int] = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
     try:
@@ -118,9 +131,8 @@ def _loop(driver: Any, args: argparse.Namespace) -> int:
         while time.monotonic() < deadline and not stop:
             msgs = driver.read(0.2)
             for m in msgs:
-                obj = _json(m)
-                if obj is not None:
-                    print(json.dumps(obj), flush=True)
+                for obj in as_json(m):
+                    print(json.dumps(obj, separators=seps), flush=True)
                     n += 1
                     if args.count is not None and n >= args.count:
                         return 0

@@ -1,0 +1,196 @@
+"""gpsd's error model and derived quantities, run after every sentence merged into a fix.
+
+As gpsd's ``gpsd_error_model``: altitudes above the ellipsoid and mean sea level from each
+other and the geoid separation; climb from the vertical velocity or from the altitudes of
+this and the previous epoch's fix; speed and track from the north/east velocity, or the
+speed from the distance to the previous fix; magnetic track from the variation; and the
+95 % error estimates from the DOPs times gpsd's user equivalent range errors (UERE: 15 m
+horizontal per axis, 23 m vertical, 19 m position; a quarter of that with DGPS):
+``epx/epy = x/ydop * 15``, ``epv = vdop * 23``, ``eph = hdop * 19``, ``sep = pdop * 19``,
+and from two epochs ``eps`` (speed), ``epc`` (climb) and ``epd`` (track). Like gpsd, the
+estimates a fix already holds are kept for the rest of its epoch (``eph``, ``epv``,
+``sep``: computed from the DOPs known when the fix first had a mode to carry them).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from drivers.nmea.fixstate import DEFERRED, MODE_2D, MODE_3D, STATUS_DGPS
+
+if TYPE_CHECKING:
+    from drivers.nmea.session import Session
+
+WGS84_A = 6378137.0
+WGS84_B = 6356752.314245
+WGS84_F = 1.0 / 298.257223563
+# (horizontal per axis, vertical, position) user equivalent range errors, metres at 95 %
+UERE = (15.0, 23.0, 19.0)
+UERE_DGPS = (3.75, 5.75, 4.75)
+_MAX_RATE = 9999.9
+
+
+def _emax(x: float | None, y: float | None) -> float | None:
+    """C's ``x > y ? x : y`` with NaN as None (a NaN anywhere compares false)."""
+    return x if x is not None and y is not None and x > y else y
+
+
+def earth_distance(lat1, lon1, lat2, lon2) -> float | None:  # noqa: ANN001
+    """Vincenty's inverse formula on WGS84 (metres); None if a point is unknown or the
+    iteration does not converge (gpsd's earth_distance)."""
+    if lat1 is None or lon1 is None or lat2 is None or lon2 is None:
+        return None
+    f = WGS84_F
+    big_l = math.radians(lon2 - lon1)
+    u1 = math.atan((1 - f) * math.tan(math.radians(lat1)))
+    u2 = math.atan((1 - f) * math.tan(math.radians(lat2)))
+    su1, cu1, su2, cu2 = math.sin(u1), math.cos(u1), math.sin(u2), math.cos(u2)
+    lam = big_l
+    for _ in range(100):
+        sl, cl = math.sin(lam), math.cos(lam)
+        ss = math.hypot(cu2 * sl, cu1 * su2 - su1 * cu2 * cl)
+        if ss == 0:
+            return 0.0
+        cs = su1 * su2 + cu1 * cu2 * cl
+        sigma = math.atan2(ss, cs)
+        sa = cu1 * cu2 * sl / ss
+        c2a = 1 - sa * sa
+        c2m = cs - 2 * su1 * su2 / c2a if c2a != 0 else 0.0
+        c = f / 16 * c2a * (4 + f * (4 - 3 * c2a))
+        prev = lam
+        lam = big_l + (1 - c) * f * sa * (sigma + c * ss * (c2m + c * cs * (2 * c2m * c2m - 1)))
+        if abs(lam - prev) <= 1e-12:
+            break
+    else:
+        return None
+    u_sq = c2a * (WGS84_A**2 - WGS84_B**2) / WGS84_B**2
+    a = 1 + u_sq / 16384 * (4096 + u_sq * (-768 + u_sq * (320 - 175 * u_sq)))
+    b = u_sq / 1024 * (256 + u_sq * (-128 + u_sq * (74 - 47 * u_sq)))
+    ds = b * ss * (c2m + b / 4 * (cs * (-1 + 2 * c2m * c2m)
+                                  - b / 6 * c2m * (-3 + 4 * ss * ss) * (-3 + 4 * c2m * c2m)))  # fmt: skip
+    return WGS84_B * a * (sigma - ds)
+
+
+def deferred_speed(lat1, lon1, lat2, lon2, dt: float) -> float | None:  # noqa: ANN001
+    """Speed from the distance between two fixes (gpsd's, when no sentence gave one)."""
+    d = earth_distance(lat1, lon1, lat2, lon2)
+    return None if d is None else _sane(d / dt)
+
+
+def _sane(v: float | None) -> float | None:
+    return None if v is None or abs(v) > _MAX_RATE else v
+
+
+def _norm360(deg: float) -> float:
+    if deg < 0.0:
+        return deg + 360.0
+    if deg >= 360.0:
+        return deg - 360.0
+    return deg
+
+
+def _velocities(fix) -> None:  # noqa: ANN001
+    """Sane north/east/down velocities; climb, speed and track from them when missing."""
+    fix.vel_n, fix.vel_e, fix.vel_d = _sane(fix.vel_n), _sane(fix.vel_e), _sane(fix.vel_d)
+    if fix.vel_d is not None and fix.climb is None:
+        fix.climb = -fix.vel_d
+    if fix.vel_n is not None and fix.vel_e is not None:
+        if fix.speed is None:
+            fix.speed = math.hypot(fix.vel_n, fix.vel_e)
+        if fix.track is None:
+            fix.track = math.degrees(math.atan2(fix.vel_e, fix.vel_n))
+
+
+def _derived(fix) -> None:  # noqa: ANN001
+    """Velocities, track, altitudes: what follows from the fix's own fields."""
+    v = fix.speed
+    if v is not None and abs(v) > _MAX_RATE:  # (False for a deferred speed)
+        fix.speed = None
+    v = fix.climb
+    if v is not None and abs(v) > _MAX_RATE:
+        fix.climb = None
+    if fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
+        _velocities(fix)
+    track, magvar = fix.track, fix.magvar
+    if magvar is not None:
+        if fix.magtrack is None and track is not None:
+            fix.magtrack = track + magvar
+        elif fix.magtrack is not None and track is None:
+            track = fix.magtrack - magvar
+    if track is not None and not 0.0 <= track < 360.0:
+        track = _norm360(track)
+    fix.track = track
+    if fix.magtrack is not None and not 0.0 <= fix.magtrack < 360.0:
+        fix.magtrack = _norm360(fix.magtrack)
+    sep = fix.geoid_sep
+    if sep is not None:
+        if fix.alt_msl is None:
+            if fix.alt_hae is not None:
+                fix.alt_msl = fix.alt_hae - sep
+        elif fix.alt_hae is None:
+            fix.alt_hae = fix.alt_msl + sep
+
+
+def error_model(st: Session, new: dict) -> None:
+    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave)."""
+    fix = st.fix
+    t = fix.time_ns
+    if t:
+        dt = (t - (st.lastfix.time_ns or 0)) * 1e-9
+        if dt > 0.0099 or dt < -0.0099:
+            st.oldfix = st.lastfix  # time moved on: the last fix is now the previous one
+        else:
+            dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
+    else:
+        dt = -1.0
+    old = st.oldfix
+    lat, lon = fix.lat, fix.lon
+    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        fix.lat = fix.lon = None
+    _derived(fix)
+    mode = fix.mode
+    moved = dt > 0 and mode >= MODE_2D and old.mode >= MODE_2D
+    if moved:
+        if fix.speed is None:
+            fix.speed = DEFERRED
+            fix.speed_args = (fix.lat, fix.lon, old.lat, old.lon, dt)
+        if (mode >= MODE_3D and old.mode >= MODE_3D and fix.climb is None
+                and fix.alt_hae is not None and old.alt_hae is not None):  # fmt: skip
+            fix.climb = _sane((fix.alt_hae - old.alt_hae) / dt)
+    if t and fix.ept is None:
+        fix.ept = 0.005
+    if mode >= MODE_2D:
+        _estimates(st, fix, new, dt, moved)
+    if t:
+        st.lastfix = fix  # the fix itself: a later sentence without a time copies it first
+
+
+def _estimates(st, fix, new: dict, dt: float, moved: bool) -> None:  # noqa: ANN001
+    h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
+    dop = st.sky.dop
+    if dop:
+        if "xdop" in dop and "epx" not in new:
+            fix.epx = dop["xdop"] * h_uere
+        if "ydop" in dop and "epy" not in new:
+            fix.epy = dop["ydop"] * h_uere
+        if fix.epv is None and fix.mode >= MODE_3D and "vdop" in dop:
+            fix.epv = dop["vdop"] * v_uere
+        if fix.eph is None and "hdop" in dop:
+            fix.eph = dop["hdop"] * p_uere
+        if fix.sep is None and "pdop" in dop:
+            fix.sep = dop["pdop"] * p_uere
+    if not moved:
+        return
+    old = st.oldfix
+    if old.epx is not None and old.epy is not None and "eps" not in new:
+        a, b = _emax(old.epx, old.epy), _emax(fix.epx, fix.epy)
+        fix.eps = None if a is None or b is None else (a + b) / dt
+    if fix.epd is None:
+        opp = _emax(fix.epx, fix.epy)
+        if opp is not None:
+            adj = st.distance(old.lat, old.lon, fix.lat, fix.lon)
+            if adj is not None and adj > opp:
+                fix.epd = math.degrees(2 * math.asin(opp / math.hypot(adj, opp)))
+    if fix.epv is not None and old.epv is not None and "epc" not in new:
+        fix.epc = (old.epv + fix.epv) / dt

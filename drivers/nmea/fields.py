@@ -1,0 +1,170 @@
+"""NMEA field values read as gpsd reads them: numbers, integers, times, dates, positions.
+
+- :func:`fnum` is gpsd's ``safe_atof``: the longest number at the start of the field
+  (``12a`` is 12), None where gpsd has NaN (empty, no digits, not finite);
+- :func:`atoi` is C's ``atoi``: the leading integer, 0 when there is none;
+- :func:`hhmmss_ns` is a time of day (``hhmmss[.sss]``) in ns, exact (the fraction is read
+  as text, so ``132827.20`` is 27.200 s, not 27.1999...: gpsd's nmea-fuzzy-cases log);
+- :func:`ddmmyy` is an RMC date, the century from the two-digit year (80-99 is 19xx);
+- :func:`latlon` is ``DDMM.mmm`` + hemisphere, computed as gpsd does (whole minutes as
+  an integer, the fraction added once, times 1/60), so results agree to the last bit.
+
+Fields that repeat within an epoch (the time, the position in GGA and RMC) are parsed
+once: the time and position parsers keep small caches of recent fields.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+_NUMBER = re.compile(r"\s*([-+]?)(\d*)(?:\.(\d*))?(?:[eE]([-+]?\d+))?")
+_INT = re.compile(r"\s*([-+]?\d+)")
+_START = frozenset("0123456789-+.")
+_CACHE_MAX = 64
+
+
+def fnum(s: str) -> float | None:
+    """gpsd's safe_atof; None for NaN (empty, nothing numeric) and for infinities."""
+    if not s:
+        return None
+    try:
+        v = float(s)  # Python reads what safe_atof reads, and more: checked below
+    except ValueError:
+        v = _prefix_float(s)
+    else:
+        if "_" in s or s[0] not in _START:  # 1_0, " 5", "nan", "inf": read as gpsd does
+            v = _prefix_float(s)
+    if v is None or v - v != 0.0:  # NaN or infinite
+        return None
+    return v
+
+
+def _prefix_float(s: str) -> float | None:
+    m = _NUMBER.match(s)
+    if m is None:
+        return None
+    sign, whole, frac, exp = m.groups()
+    stripped = s.lstrip()
+    if not stripped or stripped[0] not in _START:
+        return None
+    if not whole and not frac:
+        return -0.0 if sign == "-" else 0.0
+    text = f"{sign}{whole or '0'}.{frac or '0'}"
+    if exp is not None and len(exp.lstrip("+-")) <= 4:
+        text += f"e{exp}"
+    elif exp is not None:
+        return math.inf if not exp.startswith("-") else 0.0
+    try:
+        return float(text)
+    except (ValueError, OverflowError):
+        return None
+
+
+def atoi(s: str) -> int:
+    """C's atoi: the leading (signed) integer of the field, 0 when there is none."""
+    if s.isdigit() and s.isascii():
+        return int(s)
+    m = _INT.match(s)
+    return int(m.group(1)) if m else 0
+
+
+_HHMMSS: dict[str, int | None] = {}
+
+
+def hhmmss_ns(s: str) -> int | None:
+    """``hhmmss[.fff]`` -> ns since midnight; None if malformed or out of range."""
+    v = _HHMMSS.get(s, -1)
+    if v != -1:
+        return v
+    v = _parse_hhmmss(s)
+    if len(_HHMMSS) >= _CACHE_MAX:
+        _HHMMSS.clear()
+    _HHMMSS[s] = v
+    return v
+
+
+def _parse_hhmmss(s: str) -> int | None:
+    head = s[:6]
+    if len(head) < 6 or not (head.isdigit() and head.isascii()):
+        return None
+    h, m, sec = int(head[0:2]), int(head[2:4]), int(head[4:6])
+    if h > 23 or m > 59 or sec > 60:
+        return None
+    ns = 0
+    if s[6:7] == "." and s[7:8].isdigit():
+        digits = s[7:]
+        if len(digits) <= 9:
+            if digits.isdigit() and digits.isascii():
+                ns = int(digits) * _POW10[9 - len(digits)]
+            else:
+                lead = _INT.match(digits)
+                ns = int(lead.group(1)) * _POW10[9 - len(digits)] if lead else 0
+    return ((h * 60 + m) * 60 + sec) * 1_000_000_000 + ns
+
+
+_POW10 = tuple(10**k for k in range(10))
+
+
+def ddmmyy(s: str) -> tuple[int, int, int] | None:
+    """RMC ``ddmmyy`` -> (year, month, day); two-digit years 80-99 are 19xx."""
+    if len(s) != 6 or not (s.isdigit() and s.isascii()):
+        return None
+    d, m, y = int(s[0:2]), int(s[2:4]), int(s[4:6])
+    if not (1 <= d <= 31 and 1 <= m <= 12):
+        return None
+    return (1900 + y if y >= 80 else 2000 + y, m, d)
+
+
+def _degrees(field: str) -> float | None:
+    """gpsd's decode_lat_or_lon: ``DDDMM.mmm`` -> degrees (no sign), None if malformed."""
+    whole, dot, frac = field.partition(".")
+    if not dot:
+        return None
+    if whole.isdigit() and frac.isdigit() and field.isascii():  # the usual field
+        minutes = int(whole)
+        return (minutes - minutes // 100 * 40 + float("." + frac)) * (1.0 / 60.0)
+    m = _INT.match(whole)
+    if m is None or m.end() != len(whole):
+        if whole:
+            return None
+        minutes = 0
+    else:
+        minutes = int(m.group(1))
+    degrees = int(minutes / 100)
+    minutes -= degrees * 40
+    f = fnum("." + frac) if frac else 0.0
+    if f is None:
+        return None
+    return (minutes + f) * (1.0 / 60.0)
+
+
+_LATLON: dict[tuple[str, str, str, str], tuple[float, float] | None] = {}
+
+
+def latlon(lat: str, ns: str, lon: str, ew: str) -> tuple[float, float] | None:
+    """(lat, lon) in signed degrees from the four NMEA fields; None if any is missing or
+    malformed (gpsd's do_lat_lon; S and W are negative, any other letter positive)."""
+    key = (lat, ns, lon, ew)
+    v = _LATLON.get(key, 0)
+    if v != 0:
+        return v  # type: ignore[return-value]
+    v = None
+    if lat and ns and lon and ew:
+        a, b = _degrees(lat), _degrees(lon)
+        if a is not None and b is not None:
+            v = (-a if ns[0] == "S" else a, -b if ew[0] == "W" else b)
+    if len(_LATLON) >= _CACHE_MAX:
+        _LATLON.clear()
+    _LATLON[key] = v
+    return v
+
+
+def faa_status(mode: str) -> int:
+    """gpsd's status of an FAA mode indicator (A autonomous, D differential, ...)."""
+    return _FAA.get(mode[:1], 1)
+
+
+# '' missing, C/U Quectel caution/unsafe, N not valid -> unknown; P precise -> DGPS.
+_FAA = {"": 0, "C": 0, "N": 0, "U": 0, "A": 1, "D": 2, "E": 5, "F": 4, "P": 2, "R": 3,
+        "M": 8, "S": 8}  # fmt: skip

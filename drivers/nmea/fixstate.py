@@ -1,0 +1,110 @@
+"""The fix being built from NMEA sentences, and how a sentence's data merges into it.
+
+:class:`Fix` holds the fields of gpsd's ``gps_fix_t`` that NMEA can fill (None where gpsd
+has NaN). A sentence handler fills a fresh ``dict`` (gpsd's ``newdata``) and returns a
+mask of what it set; :func:`merge` copies the data into the current fix following gpsd's
+``gps_merge_fix``: position, mode, track and speed only when their bit is set, status
+only upwards, altitudes and error estimates whenever the handler gave them.
+"""
+
+from __future__ import annotations
+
+# Mask bits (what a sentence set; gpsd's gps_mask_t, the ones NMEA uses).
+TIME_SET = 1 << 0
+LATLON_SET = 1 << 1
+MODE_SET = 1 << 2
+STATUS_SET = 1 << 3
+ALTITUDE_SET = 1 << 4
+TRACK_SET = 1 << 5
+MAGNETIC_TRACK_SET = 1 << 6
+SPEED_SET = 1 << 7
+CLIMB_SET = 1 << 8
+VNED_SET = 1 << 9
+DOP_SET = 1 << 10
+USED_IS = 1 << 11
+SATELLITE_SET = 1 << 12
+GST_SET = 1 << 13
+CLEAR_IS = 1 << 14
+REPORT_IS = 1 << 15
+
+# Fix modes and statuses (gpsd's numbering).
+MODE_NOT_SEEN, MODE_NO_FIX, MODE_2D, MODE_3D = 0, 1, 2, 3
+STATUS_UNK, STATUS_GPS, STATUS_DGPS, STATUS_RTK_FIX, STATUS_RTK_FLT = 0, 1, 2, 3, 4
+STATUS_DR, STATUS_GNSSDR, STATUS_TIME, STATUS_SIM, STATUS_PPS_FIX = 5, 6, 7, 8, 9
+
+# The speed of a fix whose speed is the distance from the previous fix over the time
+# between them: computed only when the fix is reported (usually a later sentence of the
+# epoch gives the receiver's own speed first). Not None, so gpsd's "speed known" holds.
+DEFERRED = float("nan")
+
+
+class Fix:
+    """gpsd's fix record (None = not known). ``time_ns``: UTC, ns since 1970.
+
+    The fields are class attributes (all None) until set, so a new cycle's fix costs
+    nothing to make and a copy is a copy of what was set."""
+
+    time_ns = lat = lon = alt_hae = alt_msl = track = magtrack = magvar = speed = None
+    climb = ept = epx = epy = epd = eph = eps = sep = geoid_sep = epv = epc = None
+    vel_n = vel_e = vel_d = dgps_age = dgps_station = speed_args = None
+    mode = MODE_NOT_SEEN
+    status = STATUS_UNK
+
+    def speed_now(self) -> float | None:
+        """The speed, the deferred distance / time computed now."""
+        if self.speed is DEFERRED:
+            from drivers.nmea.errmodel import deferred_speed
+
+            self.speed = deferred_speed(*self.speed_args)
+        return self.speed
+
+    def copy(self) -> Fix:
+        c = Fix()
+        c.__dict__.update(self.__dict__)
+        return c
+
+
+# new-data key -> the mask bit it needs (0: copied whenever given); keys not listed here
+# are the session's (DOPs, GGA's quality and count) or handled below
+_GATE = {
+    "time_ns": TIME_SET, "lat": LATLON_SET, "lon": LATLON_SET, "alt_hae": ALTITUDE_SET,
+    "alt_msl": ALTITUDE_SET, "track": TRACK_SET, "magtrack": MAGNETIC_TRACK_SET,
+    "magvar": MAGNETIC_TRACK_SET, "speed": SPEED_SET, "climb": CLIMB_SET, "vel_n": VNED_SET,
+    "vel_e": VNED_SET, "vel_d": VNED_SET, "epd": 0, "eph": 0, "eps": 0, "sep": 0,
+    "geoid_sep": 0, "epv": 0,
+}  # fmt: skip
+
+
+def merge(to: Fix, mask: int, new: dict) -> bool:
+    """Merge one sentence's data (``new``, set under ``mask``) into the fix ``to``; whether
+    anything in it changed."""
+    gate = _GATE
+    changed = False
+    for name, value in new.items():
+        need = gate.get(name)
+        if need is not None and (need == 0 or mask & need) and getattr(to, name) != value:
+            setattr(to, name, value)
+            changed = True
+    if mask & TIME_SET and "time_ns" not in new and to.time_ns is not None:
+        to.time_ns, changed = None, True
+    if mask & LATLON_SET and "lat" not in new and to.lat is not None:
+        to.lat = to.lon = None
+        changed = True
+    if mask & MODE_SET:
+        mode = new.get("mode", MODE_NOT_SEEN)
+        if to.mode != mode:
+            to.mode, changed = mode, True
+    if mask & STATUS_SET:
+        status = new.get("status", STATUS_UNK)
+        if to.status < status:
+            to.status, changed = status, True
+    if "epx" in new and "epy" in new:
+        to.epx, to.epy = new["epx"], new["epy"]
+        changed = True
+    if "dgps_age" in new and (to.dgps_age, to.dgps_station) != (
+        new["dgps_age"],
+        new["dgps_station"],
+    ):
+        to.dgps_age, to.dgps_station = new["dgps_age"], new["dgps_station"]
+        changed = True
+    return changed

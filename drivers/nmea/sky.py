@@ -1,0 +1,278 @@
+"""Satellites: GSA (used) and GSV (in view) as gpsd reads them, and DOPs from the geometry.
+
+PRNs are mapped as gpsd's ``nmeaid_to_prn`` does: NMEA 4.10+ sentences carry a GNSS id,
+older ones are told apart by the talker (GL GLONASS, GA Galileo, GB/BD BeiDou, GQ/QZ
+QZSS) and by the PRN range. GSA lists of several talkers in one epoch accumulate (GP then
+GL, or two GN); a GSV set is complete when its last part arrives, and sets of several
+talkers in one epoch (GPGSV then GLGSV) accumulate. A satellite is "used" when a GSA
+lists it and its signal to noise is above 0. From a complete set, the DOPs the receiver
+did not give are computed from the unit vectors to the satellites used (gpsd's
+``fill_dop``: the inverse of the 4x4 normal matrix).
+"""
+
+from __future__ import annotations
+
+import math
+
+from drivers.nmea.fields import atoi, fnum
+from drivers.nmea.fixstate import DOP_SET, MODE_SET, SATELLITE_SET, USED_IS
+
+MAXCHANNELS = 130
+# talker letter -> NMEA 4.10 GNSS id (GSA/GSV of one constellation)
+_TALKER_GNSS = {"A": 3, "B": 4, "D": 4, "I": 6, "L": 2, "Q": 5, "Z": 5}
+# talkers after which a GP sentence is one part of a multi-constellation report
+_OTHERS = frozenset("ABDILNQZ")
+# talker -> (PRN offset, u-blox gnss id) for NMEA 2.x-4.0 PRNs 1..32
+_SMALL_PRN = {"GA": (300, 2), "GB": (400, 3), "GI": (500, 7), "GL": (64, 6), "GQ": (192, 5),
+              "BD": (400, 3), "PQ": (400, 3), "QZ": (192, 5)}  # fmt: skip
+# NMEA 2.x-4.0 PRN ranges above 32: (last PRN, u-blox gnss id, svid offset, PRN offset)
+_RANGES = ((64, 1, 87, 0), (96, 6, -64, 0), (119, 0, None, 0), (158, 1, 0, 0),
+           (172, 0, None, 0), (182, 4, -172, 0), (192, 0, None, 0), (197, 5, -192, 0),
+           (200, 0, None, 0), (237, 3, -200, 200), (300, 0, None, 0), (356, 2, -300, 0),
+           (400, 0, None, 0), (437, 3, -400, 0))  # fmt: skip
+
+
+def _prn_with_gnss(num: int, gnss: int) -> tuple[int, int, int]:
+    """NMEA 4.10 GNSS id known: (PRN, u-blox gnss id, svid)."""
+    if gnss == 1:  # GPS talker: GPS, SBAS, and receivers' own ranges
+        for last, ubx, off in ((32, 0, 0), (64, 1, 87), (136, 3, -100)):
+            if num <= last:
+                return num, ubx, num + off
+        if 152 <= num <= 157:
+            return num, 1, num
+        if 193 <= num <= 199:
+            return num, 3, num - 192
+        if 200 <= num <= 264:
+            return num, 3, num - 200
+        return 0, 0, 0
+    if gnss == 2:
+        sv = num if num < 64 else num - 64
+        return 64 + sv, 6, sv
+    if gnss in (3, 4):
+        base, ubx = (300, 2) if gnss == 3 else (400, 3)
+        sv = num
+        for lo, hi, off in ((100, 200, 100), (200, 300, 200), (300, 400, 300), (400, 500, 400)):
+            if lo < num < hi:
+                sv = num - off
+        if num >= 100 and sv == num:
+            sv = 0
+        return base + sv, ubx, sv
+    if gnss == 5:
+        sv = num if num < 100 else num - 192
+        return 192 + sv, 5, sv
+    if gnss == 6:
+        return num + 500, 7, num
+    return 0, 0, 0
+
+
+def nmea_prn(talker: str, num: int, gnss: int = 0) -> tuple[int, int, int]:
+    """(PRN, u-blox gnss id, svid) of an NMEA satellite number; PRN 0 when unknown."""
+    if num < 1:
+        return 0, 0, 0
+    if gnss > 0:
+        return _prn_with_gnss(num, gnss)
+    if num <= 32:
+        off, ubx = _SMALL_PRN.get(talker, (0, 0))
+        return num + off, ubx, num
+    for last, ubx, sv_off, prn_off in _RANGES:
+        if num <= last:
+            if sv_off is None:
+                return 0, 0, 0
+            return num + prn_off, ubx, num + sv_off
+    return 0, 0, 0
+
+
+_GSA_CACHE: dict[tuple[str, tuple[str, ...]], tuple] = {}
+
+
+def _gsa_fields(talker: str, f: tuple[str, ...]) -> tuple[int, bool, dict, tuple[int, ...]]:
+    """What a GSA says, without the session: (mode, whether it sets the mode, its DOPs,
+    the PRNs used). A receiver repeats its GSA from epoch to epoch: the last ones are kept.
+    gpsd reads count - 6 PRN fields, so a NMEA 4.10 GSA (with a system id) reads its PDOP
+    field as one more PRN; so does this."""
+    key = (talker, f)
+    hit = _GSA_CACHE.get(key)
+    if hit is not None:
+        return hit
+    count = len(f) + 1
+    dops = {}
+    if count <= 19:
+        for i, name in ((14, "pdop"), (15, "hdop"), (16, "vdop")):
+            v = fnum(f[i])
+            if v is not None and v < 99.0:
+                dops[name] = v
+    gnss = _TALKER_GNSS.get(talker[1:2], 0)
+    prns = []
+    for i in range(count - 6):
+        num = atoi(f[i + 2])
+        if num >= 1:
+            prn = nmea_prn(talker, num, gnss)[0]
+            if prn > 0:
+                prns.append(prn)
+    out = (atoi(f[1]), f[1][:1] != "E", dops, tuple(prns))
+    if len(_GSA_CACHE) >= 64:
+        _GSA_CACHE.clear()
+    _GSA_CACHE[key] = out
+    return out
+
+
+class Satellite:
+    """One satellite of the skyview (gpsd's satellite_t)."""
+
+    __slots__ = ("prn", "gnss_id", "sv_id", "elevation", "azimuth", "ss", "used")
+
+    def __init__(self, prn: int, gnss_id: int, sv_id: int, el, az, ss) -> None:  # noqa: ANN001
+        self.prn, self.gnss_id, self.sv_id = prn, gnss_id, sv_id
+        self.elevation, self.azimuth, self.ss = el, az, ss
+        self.used = False
+
+
+class Sky:
+    """Satellites used (GSA) and in view (GSV), the DOPs, and GSA/GSV parsing state."""
+
+    def __init__(self) -> None:
+        self.used_prns: list[int] = []
+        self.used_count = 0  # satellites used: GSA's list, or GGA's count when it came later
+        self.view: list[Satellite] = []
+        self.dop: dict[str, float] = {}  # xdop ydop hdop vdop pdop tdop gdop
+        self.last_gsa_talker = ""
+        self.last_gsv_talker = ""
+        self.seen_gsa: set[str] = set()
+        self.seen_gsv: set[str] = set()
+        self.part = self.awaited = 0
+        self.complete = False  # a full GSV set has been seen
+        self.changed = False  # since the last SKY report
+
+    # -------------------------------------------------------------- GSA
+    def gsa(self, talker: str, f: tuple[str, ...], new: dict, latch_mode: bool) -> int:
+        """One GSA: mode, DOPs, satellites used. ``f`` excludes the address field."""
+        count = len(f) + 1
+        t = talker[1:2]
+        last_last = self.last_gsa_talker
+        mask = 0
+        if count >= 18 and not latch_mode:
+            mode, mode_set, dops, prns = _gsa_fields(talker, f)
+            new["mode"] = mode
+            if mode_set:
+                mask = MODE_SET
+            before = (self.used_prns, self.used_count, dict(self.dop))
+            if dops:
+                self.dop.update(dops)
+                mask |= DOP_SET
+            if last_last == "" or (t == last_last and t != "N"):
+                self.used_prns = []
+            self.last_gsa_talker = t
+            self.seen_gsa.add(t)
+            used = self.used_prns = self.used_prns + list(prns[: MAXCHANNELS - len(self.used_prns)])
+            self.used_count = len(used)
+            mask |= USED_IS
+            if before != (used, self.used_count, self.dop):
+                self.changed = True  # a GSA repeating the last one changes nothing
+        if t == "P" and self.seen_gsa & _OTHERS:
+            mask = 0
+        elif last_last != "N" and t == "N":
+            mask = MODE_SET
+        return mask
+
+    # -------------------------------------------------------------- GSV
+    def zero(self) -> None:
+        self.view = []
+
+    def gsv(self, talker: str, f: tuple[str, ...]) -> tuple[int, bool]:
+        """One GSV sentence -> (mask, more parts to come)."""
+        count = len(f) + 1
+        if count <= 3 or count % 4 not in (0, 1):
+            self.zero()
+            return 0, False
+        sigid = atoi(f[-1]) if count % 4 == 1 else 0
+        self.awaited = atoi(f[0])
+        self.part = atoi(f[1])
+        if self.part < 1:
+            self.zero()
+            return 0, False
+        t = talker[1:2]
+        gnss = 0
+        if self.part == 1:
+            if self.last_gsv_talker == "" or (t == "P" and sigid not in (2, 3, 5, 6)):
+                self.zero()
+            self.last_gsv_talker = t
+            self.seen_gsv.add(t)
+            gnss = _TALKER_GNSS.get(t, 0)
+        view = self.view
+        used = self.used_prns
+        end = count // 4 * 4 - 1
+        k = 3
+        while k < end:  # one satellite per 4 fields; a PRN of 0 skips one field only
+            if len(view) >= MAXCHANNELS:
+                self.zero()
+                break
+            num = atoi(f[k])
+            k += 1
+            if num == 0:
+                continue
+            prn, ubx, sv = nmea_prn(talker, num, gnss)
+            sat = Satellite(prn, ubx, sv, _whole(f, k), _whole(f, k + 1), _whole(f, k + 2))
+            k += 3
+            if prn > 0 and sat.ss is not None and sat.ss > 0 and prn in used:
+                sat.used = True
+            view.append(sat)
+        if self.part < self.awaited:
+            return 0, True
+        if not any(s.azimuth != 0 for s in view):
+            self.zero()
+            return 0, False
+        self.complete = True
+        self.changed = True
+        if t == "P" and self.seen_gsv & _OTHERS:
+            return 0, False
+        return SATELLITE_SET, False
+
+    # -------------------------------------------------------------- DOPs
+    def fill_dop(self) -> None:
+        """DOPs from the satellites used, where the receiver gave none (gpsd fill_dop)."""
+        rows = []
+        for s in self.view:
+            if not s.used or s.prn < 1:
+                continue
+            az, el = s.azimuth, s.elevation
+            if az is None or not 0 <= az <= 359 or el is None or abs(el) > 90:
+                continue
+            a, e = math.radians(az), math.radians(el)
+            rows.append((math.sin(a) * math.cos(e), math.cos(a) * math.cos(e), math.sin(e), 1.0))
+        if len(rows) < 4:
+            return
+        prod = [[sum(r[i] * r[j] for r in rows) for j in range(4)] for i in range(4)]
+        inv = _invert4(prod)
+        if inv is None:
+            return
+        d = [inv[i][i] for i in range(4)]
+        computed = {
+            "xdop": d[0], "ydop": d[1], "hdop": d[0] + d[1], "vdop": d[2],
+            "pdop": d[0] + d[1] + d[2], "tdop": d[3], "gdop": d[0] + d[1] + d[2] + d[3],
+        }  # fmt: skip
+        for name, v in computed.items():
+            if name not in self.dop and v >= 0.0:
+                self.dop[name] = math.sqrt(v)
+
+
+def _whole(f: tuple[str, ...], i: int) -> float | None:
+    """A GSV number as gpsd reads it: the integer part, None when the field is empty."""
+    v = f[i] if i < len(f) else ""
+    return float(atoi(v)) if v else None
+
+
+def _invert4(m: list[list[float]]) -> list[list[float]] | None:
+    """Inverse of a 4x4 matrix (Gauss-Jordan, partial pivoting); None if singular."""
+    a = [row[:] + [1.0 if i == j else 0.0 for j in range(4)] for i, row in enumerate(m)]
+    for c in range(4):
+        p = max(range(c, 4), key=lambda r: abs(a[r][c]))
+        if abs(a[p][c]) < 1e-12:
+            return None
+        a[c], a[p] = a[p], a[c]
+        piv = a[c][c]
+        a[c] = [x / piv for x in a[c]]
+        for r in range(4):
+            if r != c and a[r][c] != 0.0:
+                k = a[r][c]
+                a[r] = [x - k * y for x, y in zip(a[r], a[c], strict=True)]
+    return [row[4:] for row in a]
