@@ -25,15 +25,15 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from drivers.arcos import ArcosCodec, Cmd, encode_command, frame  # noqa: E402
-from drivers.arcos.packets import encode_sip  # noqa: E402
-from drivers.cruzcore import CruzCoreCodec, encode_packet  # noqa: E402
-from drivers.irboard.canframe import pack_sample  # noqa: E402
-from drivers.irboard.codec import IrCanCodec, IrSerialCodec  # noqa: E402
-from drivers.irboard.serialframe import RawSample, encode_sample  # noqa: E402
-from drivers.nmea.codec import NmeaCodec  # noqa: E402
-from drivers.nmea.writer import epoch_sentences  # noqa: E402
-from msgs import GpsFix  # noqa: E402
+from drivers.arcos import ArcosCodec, Cmd, encode_command, frame
+from drivers.arcos.packets import encode_sip
+from drivers.cruzcore import CruzCoreCodec, encode_packet
+from drivers.irboard.canframe import pack_sample
+from drivers.irboard.codec import IrCanCodec, IrSerialCodec
+from drivers.irboard.serialframe import RawSample, encode_sample
+from drivers.nmea.codec import NmeaCodec
+from drivers.nmea.writer import epoch_sentences
+from msgs import GpsFix
 
 SIP = frame(0x33, encode_sip({"XPOS": 100, "YPOS": 200, "THPOS": 5, "L_VEL": 100, "R_VEL": 120,
                               "BATTERY": 128, "FLAGS": 1, "BATTERYX10": 128, "ROTVEL": 10,

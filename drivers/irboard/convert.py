@@ -131,7 +131,7 @@ class IrConverter:
         raw = tuple(map(int, counts))
         return IrScan(stamp_ns, s.board_id, s.seq, ranges, status, volts, raw)  # type: ignore[arg-type]
 
-    def _filtered(self, s: RawSample, stamp_ns: int, ranges: np.ndarray, volts, status) -> IrScan:  # noqa: ANN001
+    def _filtered(self, s: RawSample, stamp_ns: int, ranges: np.ndarray, volts, status) -> IrScan:
         codes = np.array([STATUS_NAMES.index(x) for x in status], dtype=np.int8)
         ranges = self._median(np.where(codes == 0, ranges, np.nan))  # type: ignore[misc]
         codes = np.where(np.isfinite(ranges), 0, codes).astype(np.int8)

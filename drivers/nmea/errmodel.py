@@ -36,7 +36,7 @@ def _emax(x: float | None, y: float | None) -> float | None:
     return x if x is not None and y is not None and x > y else y
 
 
-def earth_distance(lat1, lon1, lat2, lon2) -> float | None:  # noqa: ANN001
+def earth_distance(lat1, lon1, lat2, lon2) -> float | None:
     """Vincenty's inverse formula on WGS84 (metres); None if a point is unknown or the
     iteration does not converge (gpsd's earth_distance)."""
     if lat1 is None or lon1 is None or lat2 is None or lon2 is None:
@@ -72,7 +72,7 @@ def earth_distance(lat1, lon1, lat2, lon2) -> float | None:  # noqa: ANN001
     return WGS84_B * a * (sigma - ds)
 
 
-def deferred_speed(lat1, lon1, lat2, lon2, dt: float) -> float | None:  # noqa: ANN001
+def deferred_speed(lat1, lon1, lat2, lon2, dt: float) -> float | None:
     """Speed from the distance between two fixes (gpsd's, when no sentence gave one)."""
     d = earth_distance(lat1, lon1, lat2, lon2)
     return None if d is None else _sane(d / dt)
@@ -90,7 +90,7 @@ def _norm360(deg: float) -> float:
     return deg
 
 
-def _velocities(fix) -> None:  # noqa: ANN001
+def _velocities(fix) -> None:
     """Sane north/east/down velocities; climb, speed and track from them when missing."""
     fix.vel_n, fix.vel_e, fix.vel_d = _sane(fix.vel_n), _sane(fix.vel_e), _sane(fix.vel_d)
     if fix.vel_d is not None and fix.climb is None:
@@ -102,7 +102,7 @@ def _velocities(fix) -> None:  # noqa: ANN001
             fix.track = math.degrees(math.atan2(fix.vel_e, fix.vel_n))
 
 
-def _derived(fix) -> None:  # noqa: ANN001
+def _derived(fix) -> None:
     """Velocities, track, altitudes: what follows from the fix's own fields."""
     v = fix.speed
     if v is not None and abs(v) > _MAX_RATE:  # (False for a deferred speed)
@@ -166,7 +166,7 @@ def error_model(st: Session, new: dict) -> None:
         st.lastfix = fix  # the fix itself: a later sentence without a time copies it first
 
 
-def _estimates(st, fix, new: dict, dt: float, moved: bool) -> None:  # noqa: ANN001
+def _estimates(st, fix, new: dict, dt: float, moved: bool) -> None:
     h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
     dop = st.sky.dop
     if dop:

@@ -154,7 +154,7 @@ class Session:
     def sky_used(self) -> int:
         return self.sky.used_count
 
-    def distance(self, lat1, lon1, lat2, lon2) -> float | None:  # noqa: ANN001
+    def distance(self, lat1, lon1, lat2, lon2) -> float | None:
         """earth_distance, remembered for the last pair of points (asked once a sentence)."""
         key = (lat1, lon1, lat2, lon2)
         if self._dist[0] != key:

@@ -121,7 +121,7 @@ class Satellite:
 
     __slots__ = ("prn", "gnss_id", "sv_id", "elevation", "azimuth", "ss", "used")
 
-    def __init__(self, prn: int, gnss_id: int, sv_id: int, el, az, ss) -> None:  # noqa: ANN001
+    def __init__(self, prn: int, gnss_id: int, sv_id: int, el, az, ss) -> None:
         self.prn, self.gnss_id, self.sv_id = prn, gnss_id, sv_id
         self.elevation, self.azimuth, self.ss = el, az, ss
         self.used = False
