@@ -44,7 +44,7 @@ import numpy as np
 
 from localization.cp_config import CPConfig
 from localization.cp_window import SlidingWindowCP
-from localization.interval import IV, TWO_PI
+from localization.interval import IV, align_angle
 from localization.odometry import wheels_from_poses
 from msgs import (
     GpsFix,
@@ -87,11 +87,9 @@ class CPLocalizer(SlidingWindowCP):
         self.peers: dict[str, PoseBox] = {}
 
     def _pose_box(self, stamp_ns: int, x: IV, y: IV, th: IV) -> PoseBox:
+        if math.isfinite(float(th.lo)) and math.isfinite(float(th.hi)):
+            th = align_angle(th, 0.0)  # shifted by an enclosure of 2*pi*k: still guaranteed
         lo, hi = float(th.lo), float(th.hi)
-        if math.isfinite(lo) and math.isfinite(hi):
-            k = round(0.5 * (lo + hi) / TWO_PI)
-            lo, hi = lo - k * TWO_PI, hi - k * TWO_PI
-            lo, hi = float(np.nextafter(lo, -math.inf)), float(np.nextafter(hi, math.inf))
         return PoseBox(
             stamp_ns=int(stamp_ns),
             robot=self.robot,

@@ -170,8 +170,16 @@ class SlidingWindowCP(MessageIntake):
         cur = lst[-1]
         if angle:
             # Meet modulo 2*pi, inside what is known of this heading already (its hard box
-            # and the latest solution or prediction: all in the chain's representation).
-            iv = meet_angle(IV.of(cur[0], cur[1]) & self._theta_ref(), iv)
+            # and the latest solution or prediction: all in the chain's representation),
+            # over every branch of ``iv`` that meets it.
+            known = IV.of(cur[0], cur[1]) & self._theta_ref()
+            if np.isneginf(known.lo) and np.isposinf(known.hi):
+                # Nothing known of any heading of the window yet: the representation is
+                # free (shifting every heading by 2*pi*k keeps every constraint), so the
+                # first heading fixes it on the branch of ``iv`` next to 0.
+                iv = align_angle(iv, 0.0)
+            else:
+                iv = meet_angle(known, iv)
         cur[0] = max(cur[0], float(iv.lo))
         cur[1] = min(cur[1], float(iv.hi))
         self._dirty = True
@@ -230,8 +238,8 @@ class SlidingWindowCP(MessageIntake):
         else:
             x, y, th = (v[-1] for v in self._solve())
         hx, hy, hth = w.hard_latest()
-        if math.isfinite(float(hth.lo)) and math.isfinite(float(hth.hi)):
-            hth = align_angle(hth, th.mid())
+        # hth and th are both in the chain's representation of the heading (every hard
+        # heading is met inside it by _hard): a plain intersection.
         return x & hx, y & hy, th & hth
 
     def solve(self) -> tuple[IV, IV, IV]:
