@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import os
 import sys
 import time
@@ -57,3 +59,16 @@ def pump(driver, seconds: float, v: float | None = None, w: float = 0.0):
             if isinstance(m, RobotOdometry):
                 last = m
     return last
+
+
+_LIBM = ctypes.CDLL(ctypes.util.find_library("m"))
+_FE_TONEAREST = 0  # glibc on x86-64 and aarch64
+
+
+@pytest.fixture(autouse=True)
+def _round_to_nearest():
+    """Every test starts from IEEE round-to-nearest: Codac (the interval tests' oracle)
+    switches the process to upward rounding, which must not leak into other tests."""
+    _LIBM.fesetround(_FE_TONEAREST)
+    yield
+    _LIBM.fesetround(_FE_TONEAREST)
