@@ -30,6 +30,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench.daemon import children
 from hilnav.bus import Bus, ZenohSettings, free_tcp_port
 from msgs import GroundTruth, VelocityCommand
 
@@ -43,17 +44,6 @@ def _wait(cond, timeout_s: float) -> bool:
             return True
         time.sleep(0.01)
     return False
-
-
-def _children(pid: int) -> list[int]:
-    out: list[int] = []
-    try:
-        for tid in os.listdir(f"/proc/{pid}/task"):
-            with open(f"/proc/{pid}/task/{tid}/children") as f:
-                out += [int(p) for p in f.read().split()]
-    except FileNotFoundError:
-        pass
-    return out
 
 
 def _alive(pid: int) -> bool:
@@ -136,7 +126,7 @@ def orphan_after_kill(tmp: Path) -> bool:
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)  # fmt: skip
     try:
         assert proc.stdout is not None and " up" in proc.stdout.readline()
-        kids = _children(proc.pid)
+        kids = children(proc.pid)
         proc.send_signal(signal.SIGKILL)
         proc.wait(10)
         time.sleep(3.0)
