@@ -36,12 +36,14 @@ from msgs import (
     OccupancyGridMsg,
     PoseBox,
     PoseEstimate,
+    RangeBearing,
     RawBytes,
     RelativeMeasurement,
     RobotInfo,
     RobotOdometry,
     VehicleControl,
     VelocityCommand,
+    VelocityOdometry,
 )
 
 
@@ -82,6 +84,8 @@ _TABLE = (
           published=True),
     Topic("landmarks", LandmarkMap, "services", "EKF-SLAM landmark map"),
     Topic("slam_pose", PoseEstimate, "services", "EKF-SLAM vehicle pose"),
+    Topic("dead_reckoning", PoseEstimate, "services", "velocity odometry integrated from the "
+          "initial pose, uncorrected (replay of velocity-odometry data sets)"),
     Topic("diagnostics", DeviceDiagnostics, "daemon", "per-device link counters, 1 Hz",
           published=True),
     Topic("status", DaemonStatus, "daemon", "the daemon's loop, bus and motion gate, 1 Hz",
@@ -92,6 +96,14 @@ _TABLE = (
           service_input=True),
     Topic("landmark_scan", LandmarkScan, "external", "range-bearing landmark detections",
           service_input=True),
+    Topic("velocity", VelocityOdometry, "external", "velocity odometry: forward speed and yaw "
+          "rate (MRCLAM: commanded)", service_input=True),
+    Topic("landmark_range_bearing", RangeBearing, "external", "range-bearing to a known "
+          "landmark of landmark_map, named (no bounds)", service_input=True),
+    Topic("peer_range_bearing", RangeBearing, "external", "range-bearing to another robot, "
+          "named (no bounds)", service_input=True),
+    Topic("landmark_map", LandmarkMap, "external", "a data set's known (surveyed) landmark "
+          "map, logged once per robot at its start", service_input=True),
 )  # fmt: skip
 
 TOPICS: dict[str, Topic] = {t.name: t for t in _TABLE}

@@ -12,8 +12,8 @@ from msgs.geometry import Interval, Pose2D
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
-from msgs.relative import RelativeMeasurement
-from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
+from msgs.relative import RangeBearing, RelativeMeasurement
+from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand, VelocityOdometry
 from msgs.sensors import GpsFix, GpsSatellite, GpsSky, GyroSample, IrScan, IrStatus
 from numerics.angles import wrap_angle
 
@@ -37,12 +37,14 @@ __all__ = [
     "Pose2D",
     "PoseBox",
     "PoseEstimate",
+    "RangeBearing",
     "RawBytes",
     "RelativeMeasurement",
     "RobotInfo",
     "RobotOdometry",
     "VehicleControl",
     "VelocityCommand",
+    "VelocityOdometry",
     "decode",
     "encode",
     "from_dict",

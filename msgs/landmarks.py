@@ -43,7 +43,8 @@ class LandmarkScan:
 
 @dataclass(frozen=True, slots=True)
 class LandmarkMap:
-    """The confirmed landmarks of an EKF-SLAM map in ``frame``.
+    """A landmark map in ``frame``: the confirmed landmarks of an EKF-SLAM map, or a data
+    set's surveyed map of known landmarks.
 
     For landmark i: ids[i], position (xs[i], ys[i]) in metres and its marginal 2x2
     covariance (cov_xx[i], cov_xy[i], cov_yy[i]) in m^2.

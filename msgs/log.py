@@ -23,7 +23,13 @@ class RawBytes:
 
 @dataclass(frozen=True, slots=True)
 class GroundTruth:
-    """The simulated world's true pose of one robot (only the fakes know it)."""
+    """The true pose of one robot: the simulated world's (only the fakes know it), or a
+    data set's reference (motion capture).
+
+    ``gap_before_s`` > 0 says that the reference lost the robot for that long before this
+    sample (a gap longer than the data set's interpolable span): nothing is known between
+    the previous sample and this one, and no instant in between may be scored. 0 means
+    the samples are contiguous (always, for the simulated world)."""
 
     FLOATS: ClassVar[str] = "finite"
 
@@ -32,3 +38,4 @@ class GroundTruth:
     pose: Pose2D
     linear_mps: float = 0.0
     angular_radps: float = 0.0
+    gap_before_s: float = 0.0

@@ -1,4 +1,5 @@
-"""Messages of the robot base (Pioneer 3-DX through ARCOS): odometry, commands, info."""
+"""Messages of the robot base (Pioneer 3-DX through ARCOS): odometry, commands, info; and
+the velocity odometry of bases that report only their velocities (MRCLAM's iRobot Create)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,21 @@ class RobotOdometry:
     left_encoder: int | None = None
     right_encoder: int | None = None
     raw: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, slots=True)
+class VelocityOdometry:
+    """The velocities a robot base reports for itself: forward (m/s) and yaw rate (rad/s,
+    counter-clockwise), held until the next message. ``commanded`` is true when they are
+    the commanded velocities (MRCLAM's odometry files) rather than measured at the
+    wheels. Decoding refuses non-finite numbers."""
+
+    FLOATS: ClassVar[str] = "finite"
+
+    stamp_ns: int
+    linear_mps: float
+    angular_radps: float
+    commanded: bool = False
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,7 +1,8 @@
 """``hilnav analyze``: what a log allows to conclude, per robot, as a typed :class:`Analysis`.
 
 Per robot (topics ``/<robot>/<kind>``, read by tracks.py), against the reference — ``truth``
-(msgs.GroundTruth, fakes only) or, without truth, the GPS east/north fixes (position only):
+(msgs.GroundTruth: the fakes', or a data set's motion capture, whose gaps are not scored)
+or, without truth, the GPS east/north fixes (position only):
 
 - path error and heading drift per metre of every pose source (errors.py);
 - map match ratio of the last map against the floor plan (maps.py);
@@ -31,6 +32,7 @@ from hilnav.analysis.result import (
     LandmarkSummary,
     RobotAnalysis,
     RobotSeries,
+    TruthGaps,
 )
 from hilnav.analysis.tracks import NS, RobotLog, Track, load
 from hilnav.log.reader import ReadStats, read_metadata
@@ -114,6 +116,9 @@ def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
         diagnostics=diagnostics_summary(rl.diagnostics),
         info=rl.info,
     )
+    if ref_name == "truth" and ref.gaps:
+        spans = [(hi - lo) / NS for lo, hi in ref.gaps]
+        ra.truth_gaps = TruthGaps(len(spans), float(sum(spans)), float(max(spans)))
     if len(ref) >= 2:
         _, rx, ry, _ = ref.arrays()
         ra.reference_distance_m = float(path_length(rx, ry)[-1])

@@ -1,7 +1,8 @@
 """Containment: CP pose boxes (ekf-vs-cp.txt) and EKF 3-sigma bounds against the truth.
 
 The fraction of ``pose_box`` boxes that contain the truth and their areas; for comparison,
-the fraction of EKF poses whose 3-sigma bounds hold the truth.
+the fraction of EKF poses whose 3-sigma bounds hold the truth. Instants in a gap of the
+truth are not judged.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ def ekf_containment(track: Track, ref: Track, sigmas: float = 3.0) -> EkfContain
     var = np.asarray(track.var, dtype=float)[order]
     rt, rx, ry, rth = ref.arrays()
     qx, qy, qth, ok = interp_pose(rt, rx, ry, rth, t)
+    ok &= ref.covered(t)
     if not ok.any():
         return None
     sd = np.sqrt(np.clip(var, 0.0, None))
@@ -73,6 +75,7 @@ def box_series(rl: RobotLog) -> BoxSeries | None:
     if len(rl.truth) >= 2:
         rt, rx, ry, rth = rl.truth.arrays()
         qx, qy, qth, ok = interp_pose(rt, rx, ry, rth, t)
+        ok &= rl.truth.covered(t)
         for i, (_, b) in enumerate(rl.boxes):
             if ok[i]:
                 contained[i] = int(box_contains(b, qx[i], qy[i], qth[i]))

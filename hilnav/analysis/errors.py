@@ -82,6 +82,7 @@ def source_errors(
         rth = np.full(len(rt), np.nan)
     if name in DEAD_RECKONING:  # their own frames: align at the first sample
         q0x, q0y, q0th, ok0 = interp_pose(rt, rx, ry, rth, t[:1])
+        ok0 &= ref.covered(t[:1])
         if not ok0[0]:
             i = int(np.searchsorted(rt, t[0]))
             q0x, q0y = rx[min(i, len(rt) - 1)] * np.ones(1), ry[min(i, len(rt) - 1)] * np.ones(1)
@@ -92,6 +93,7 @@ def source_errors(
             x, y, th = align_at_start(x, y, th, float(q0x[0]), float(q0y[0]), r0th)
     if ref_has_heading:
         qx, qy, qth, ok = interp_pose(rt, rx, ry, rth, t)
+        ok &= ref.covered(t)  # no score inside a gap of the truth
         if not ok.any():
             return None
         te, ex, ey, eth = t[ok], x[ok], y[ok], th[ok]

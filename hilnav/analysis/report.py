@@ -104,6 +104,8 @@ def _robot(ra: RobotAnalysis) -> JsonDict:
         out["reference_distance_m"] = ra.reference_distance_m
     if ra.gps_fixes is not None:
         out["gps_fixes"] = asdict(ra.gps_fixes)
+    if ra.truth_gaps is not None:
+        out["truth_gaps"] = asdict(ra.truth_gaps)
     if ra.paths:
         out["paths"] = {name: _source(s) for name, s in ra.paths.items()}
     if ra.ekf_3sigma:

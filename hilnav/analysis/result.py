@@ -129,6 +129,15 @@ class MapSummary:
 
 
 @dataclass(frozen=True)
+class TruthGaps:
+    """Gaps of the truth (a data set's motion capture lost the robot): not scored."""
+
+    count: int
+    total_s: float
+    longest_s: float
+
+
+@dataclass(frozen=True)
 class LandmarkSummary:
     """Landmark maps logged, and the landmarks in the last one."""
 
@@ -183,6 +192,7 @@ class RobotAnalysis:
     series: RobotSeries
     reference_distance_m: float | None = None
     gps_fixes: GpsFixes | None = None  # with a GPS reference
+    truth_gaps: TruthGaps | None = None  # a truth with gaps
     paths: dict[str, SourceTrack] = field(default_factory=dict)
     ekf_3sigma: dict[str, EkfContainment] = field(default_factory=dict)
     cp_boxes: BoxSummary | None = None

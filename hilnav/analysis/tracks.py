@@ -4,6 +4,10 @@ Topics are ``/<robot>/<kind>``. Times are the messages' own stamps (``stamp_ns``
 clock in the daemon, the device read time, carried over to the estimates), or the MCAP log
 time for a message without one — log times of service outputs are when the service loop
 got to them, which lags behind when the loop stalls.
+
+The truth's gaps (msgs.GroundTruth ``gap_before_s`` > 0: a data set's motion capture lost
+the robot) are kept on the truth track; :meth:`Track.covered` says which instants lie
+outside them, and only those are scored.
 """
 
 from __future__ import annotations
@@ -30,12 +34,13 @@ from msgs import (
     RobotInfo,
     RobotOdometry,
     VehicleControl,
+    VelocityOdometry,
 )
 
 NS = 1_000_000_000
 # Sources in their own frame (dead reckoning from where they started): compared after a
 # rigid alignment of their first sample to the reference.
-DEAD_RECKONING = ("odometry", "gyro", "heading")
+DEAD_RECKONING = ("odometry", "gyro", "heading", "dead_reckoning")
 
 
 @dataclass
@@ -47,6 +52,7 @@ class Track:
     y: list[float] = field(default_factory=list)
     theta: list[float] = field(default_factory=list)
     var: list[tuple[float, float, float]] = field(default_factory=list)  # sx^2, sy^2, st^2
+    gaps: list[tuple[int, int]] = field(default_factory=list)  # (start, end) ns, nothing known
 
     def add(self, t: int, x: float, y: float, theta: float, var=None) -> None:
         self.t.append(int(t))
@@ -68,6 +74,14 @@ class Track:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def covered(self, t: np.ndarray) -> np.ndarray:
+        """Mask of the instants ``t`` (ns) that lie in no gap (strictly inside one: not)."""
+        t = np.asarray(t, dtype=np.int64)
+        ok = np.ones(len(t), dtype=bool)
+        for lo, hi in self.gaps:
+            ok &= ~((t > lo) & (t < hi))
+        return ok
 
 
 @dataclass
@@ -108,6 +122,8 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
         t = stamp if isinstance(stamp, int) and stamp > 0 else m.log_time_ns
         if isinstance(msg, GroundTruth):
             rl.truth.add(t, msg.pose.x, msg.pose.y, msg.pose.theta)
+            if msg.gap_before_s > 0:
+                rl.truth.gaps.append((t - round(msg.gap_before_s * NS), t))
         elif isinstance(msg, PoseEstimate):
             c = msg.covariance
             var = (c[0], c[4], c[8]) if len(c) == 9 else None
@@ -125,6 +141,8 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
                 rl.gps.add(t, msg.east_m, msg.north_m, math.nan)
         elif isinstance(msg, VehicleControl):
             rl.speeds.append((t, msg.speed_mps))
+        elif isinstance(msg, VelocityOdometry):
+            rl.speeds.append((t, msg.linear_mps))
         elif isinstance(msg, PoseBox):
             rl.boxes.append((t, msg))
         elif isinstance(msg, OccupancyGridMsg):

@@ -1,4 +1,4 @@
-"""``hilnav import victoria-park DIR OUT.mcap``: public data sets as hilnav logs."""
+"""``hilnav import victoria-park|mrclam DIR OUT.mcap``: public data sets as hilnav logs."""
 
 from __future__ import annotations
 
@@ -30,6 +30,27 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
     )
     vp.set_defaults(func=run_victoria_park)
+    mr = isub.add_parser(
+        "mrclam",
+        help="UTIAS MRCLAM: five robots' velocity odometry, range-bearing, landmarks, truth",
+        description="Write an MRCLAM run directory (Barcodes.dat, Landmark_Groundtruth.dat, "
+        "RobotN_Odometry/Measurement/Groundtruth.dat) as a multi-robot MCAP log for replay "
+        "and analyze: per robot r<N>, /r<N>/velocity, /r<N>/landmark_range_bearing, "
+        "/r<N>/peer_range_bearing, /r<N>/landmark_map (once) and /r<N>/truth (gaps "
+        "flagged). Log time = the data set's clock. Prints a JSON report on its last line.",
+    )
+    mr.add_argument("dir", help="MRCLAM run directory (e.g. MRCLAM_Dataset6)")
+    mr.add_argument("out", help="MCAP log to write")
+    mr.add_argument("--seconds", type=float, help="only S seconds (from the start)")
+    mr.add_argument("--start", type=float, default=0.0, help="skip the first S seconds of the run")
+    mr.add_argument("--robots", help="robot numbers to import, e.g. 1,2 (default: all)")
+    mr.add_argument(
+        "--compression",
+        default="zstd",
+        choices=("zstd", "lz4", "none"),
+        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
+    )
+    mr.set_defaults(func=run_mrclam)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
@@ -51,5 +72,46 @@ def run_victoria_park(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     d = rep.as_dict()
     print(f"imported {sum(rep.counts.values())} messages ({d['duration_s']} s) into {out}")
+    print(json.dumps(d, sort_keys=True))
+    return 0
+
+
+def _robot_numbers(text: str | None) -> list[int] | None:
+    if text is None:
+        return None
+    try:
+        nums = sorted({int(p) for p in text.split(",") if p.strip()})
+    except ValueError:
+        raise CliError(f"--robots {text!r}: give robot numbers, e.g. 1,2") from None
+    if not nums or min(nums) < 1:
+        raise CliError(f"--robots {text!r}: give robot numbers >= 1, e.g. 1,2")
+    return nums
+
+
+def run_mrclam(args: argparse.Namespace) -> int:
+    from hilnav.importers.mrclam import import_mrclam
+
+    if args.seconds is not None and args.seconds <= 0:
+        raise CliError("--seconds must be > 0")
+    if args.start < 0:
+        raise CliError("--start must be >= 0 seconds")
+    robots = _robot_numbers(args.robots)
+    out = Path(args.out)
+    if out.parent and not out.parent.exists():
+        raise CliError(f"output folder does not exist: {out.parent}")
+    try:
+        rep = import_mrclam(
+            args.dir,
+            out,
+            seconds=args.seconds,
+            start_s=args.start,
+            robots=robots,
+            compression=args.compression,
+        )
+    except ValueError as exc:  # MrclamError names the file and the problem
+        raise CliError(str(exc)) from None
+    d = rep.as_dict()
+    total = sum(d["messages"].values())
+    print(f"imported {total} messages of {', '.join(rep.robots)} ({d['duration_s']} s) into {out}")
     print(json.dumps(d, sort_keys=True))
     return 0

@@ -11,13 +11,16 @@ from typing import Any
 from hilnav.log.reader import iter_raw
 from hilnav.topics import SERVICE_INPUTS, split_log_topic
 
-PIPELINES = ("auto", "daemon", "landmark-slam")
+PIPELINES = ("auto", "daemon", "landmark-slam", "velocity")
 
 
 def guess_robot(path: str | Path, meta: dict[str, str]) -> str:
-    """The log's robot: the metadata's, else the robot with the most device messages."""
+    """The log's robot: the metadata's (the first of ``robots`` for a multi-robot data
+    set), else the robot with the most device messages."""
     if meta.get("robot"):
         return meta["robot"]
+    if meta.get("robots"):
+        return meta["robots"].split(",")[0]
     counts: Counter = Counter()
     for r in iter_raw(path):
         robot, kind = split_log_topic(r.topic)
@@ -46,35 +49,75 @@ def resolve_config(config_path: str | None, meta: dict[str, str]) -> tuple[Any, 
     return load_config(None), "<defaults>"
 
 
+def _kinds(src: Path) -> dict[str, set[str]]:
+    """Robot -> the topic names it has in the log."""
+    out: dict[str, set[str]] = {}
+    for r in iter_raw(src):
+        robot, kind = split_log_topic(r.topic)
+        if robot:
+            out.setdefault(robot, set()).add(kind)
+    return out
+
+
 def choose_pipeline(
     src: Path, robot: str, meta: dict[str, str], name: str, source: str
 ) -> tuple[Callable[[Any], Any], str]:
     """The pipeline class to replay with, and the config source to report.
 
     "daemon": hilnav.pipeline.Pipeline; "landmark-slam": EKF-SLAM over controls and scans
-    (hilnav.replay.landmark_slam); "auto": landmark-slam for a landmark data set (its
-    metadata names one, or the robot has controls or landmark scans and no odometry)."""
+    (hilnav.replay.landmark_slam); "velocity": every robot with velocity odometry, each
+    through hilnav.replay.velocity_robot, together (hilnav.replay.multi_robot); "auto":
+    velocity for an MRCLAM log (its metadata says so, or the robot has velocity odometry
+    and no Pioneer odometry), landmark-slam for another data set or a robot with controls
+    or landmark scans and no odometry, else daemon."""
     if name not in PIPELINES:
         raise ValueError(f"pipeline {name!r}: choose one of {', '.join(PIPELINES)}")
+    kinds: dict[str, set[str]] | None = None
     if name == "auto":
         name = "daemon"
-        if meta.get("dataset"):
+        dataset = meta.get("dataset")
+        if dataset == "mrclam":
+            name = "velocity"
+        elif dataset:
             name = "landmark-slam"
         else:
-            kinds = {
-                split_log_topic(r.topic)[1]
-                for r in iter_raw(src)
-                if split_log_topic(r.topic)[0] == robot
-            }
-            if kinds & {"control", "landmark_scan"} and "odometry" not in kinds:
+            kinds = _kinds(src)
+            mine = kinds.get(robot, set())
+            if "velocity" in mine and "odometry" not in mine:
+                name = "velocity"
+            elif mine & {"control", "landmark_scan"} and "odometry" not in mine:
                 name = "landmark-slam"
     if name == "landmark-slam":
         from hilnav.replay.landmark_slam import LandmarkSlamPipeline
 
         return LandmarkSlamPipeline, "landmark-slam defaults (mapping.slam.service.SlamConfig)"
+    if name == "velocity":
+        return _velocity_factory(src, meta, kinds), "velocity-robot services (no config)"
     from hilnav.pipeline import Pipeline
 
     return Pipeline, source
+
+
+def _velocity_factory(
+    src: Path, meta: dict[str, str], kinds: dict[str, set[str]] | None
+) -> Callable[[Any], Any]:
+    """All the log's velocity-odometry robots (metadata ``robots``, else those with a
+    ``velocity`` topic), each from its ``initial_pose.<robot>``."""
+    from hilnav.replay.multi_robot import MultiRobotPipeline
+    from hilnav.replay.velocity_robot import VelocityRobotPipeline, initial_poses
+
+    robots = [r for r in meta.get("robots", "").split(",") if r]
+    if not robots:
+        kinds = kinds if kinds is not None else _kinds(src)
+        robots = sorted(r for r, k in kinds.items() if "velocity" in k)
+    if not robots:
+        raise ValueError("no robot with velocity odometry (/<robot>/velocity) in this log")
+    inits = initial_poses(meta)
+
+    def factory(config: Any) -> MultiRobotPipeline:
+        return MultiRobotPipeline(robots, lambda r: VelocityRobotPipeline(r, inits.get(r)))
+
+    return factory
 
 
 def message_total(path: Path) -> int | None:
