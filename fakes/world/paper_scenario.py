@@ -6,7 +6,9 @@ wheel encoders, a heading gyro and a GPS; for the cooperative case each also mea
 range and bearing to the others. Every error is drawn uniformly inside a stated bound
 (a little inside, so float rounding of the truth cannot step outside): that is the
 set-membership assumption under which constraint propagation is guaranteed. The EKF is
-given the matching standard deviations (bound / sqrt(3)).
+given the matching standard deviations (bound / sqrt(3)). ``errors`` picks another error
+model against the same bounds (fakes.world.error_models: gaussian, bias, heavy-tailed),
+from the same random draws, so the truth and the seeds' world stay the same.
 
 The truth moves on constant-curvature arcs per step. The world is deterministic for a
 seed, so separate robot processes can each rebuild it and see the same truth (the fleet
@@ -20,10 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fakes.world.error_models import bias_signs, check_model, error
 from msgs import Pose2D
 from numerics.angles import wrap_angles
-
-SHRINK = 0.95  # errors are drawn within SHRINK * bound
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,7 @@ class Scenario:
     rel_range: np.ndarray  # (N, N, K+1) observer i, target j
     rel_bearing: np.ndarray  # (N, N, K+1) in the observer's frame
     jumps: list[tuple[int, int]] = field(default_factory=list)  # (robot, step) outliers
+    errors: str = "uniform"  # the error model (fakes.world.error_models)
 
     @property
     def steps(self) -> int:
@@ -113,10 +115,13 @@ def simulate(
     gps_every: int = 1,
     speed_jitter: float = 0.02,
     gps_jumps: tuple[tuple[int, int, float, float], ...] = (),
+    errors: str = "uniform",
 ) -> Scenario:
     """Run the scenario. ``speed_jitter``: relative wheel-speed wobble of the truth
     (uniform, per step) so the motion is not perfectly regular; ``gps_jumps``: (robot,
-    step, dx, dy) offsets added to single fixes (outliers beyond the bound)."""
+    step, dx, dy) offsets added to single fixes (outliers beyond the bound); ``errors``:
+    the error model of every sensor (fakes.world.error_models.ERROR_MODELS)."""
+    model = check_model(errors)
     b = bounds or Bounds()
     n, k = len(robots), int(round(duration_s / dt))
     stamps = np.arange(k + 1, dtype=np.int64) * int(round(dt * 1e9))
@@ -127,18 +132,18 @@ def simulate(
     gyro = np.zeros((n, k + 1))
     for i, spec in enumerate(robots):
         rng = np.random.default_rng([seed, i])
+        sr, sl, sg, sx, sy = bias_signs(seed, i, 5)
         truth[i, 0] = (spec.start.x, spec.start.y, spec.start.theta)
         for s in range(1, k + 1):
             tr = spec.right_mps * dt * (1.0 + speed_jitter * rng.uniform(-1, 1))
             tl = spec.left_mps * dt * (1.0 + speed_jitter * rng.uniform(-1, 1))
             truth[i, s] = _arc(truth[i, s - 1], tr, tl, wheelbase_m)
-            for true, out in ((tr, dsr), (tl, dsl)):
-                out[i, s] = true + SHRINK * (b.wheel_abs_m + b.wheel_rel * abs(true)) * rng.uniform(
-                    -1, 1
-                )
-        gyro[i] = truth[i, :, 2] + SHRINK * b.gyro_rad * rng.uniform(-1, 1, k + 1)
+            for true, out, sign in ((tr, dsr, sr), (tl, dsl, sl)):
+                bound = b.wheel_abs_m + b.wheel_rel * abs(true)
+                out[i, s] = true + error(model, bound, rng.uniform(-1, 1), sign)
+        gyro[i] = truth[i, :, 2] + error(model, b.gyro_rad, rng.uniform(-1, 1, k + 1), sg)
         fix = np.arange(k + 1) % gps_every == 0
-        err = SHRINK * b.gps_m * rng.uniform(-1, 1, (k + 1, 2))
+        err = error(model, b.gps_m, rng.uniform(-1, 1, (k + 1, 2)), np.array([sx, sy]))
         gps[i, fix] = truth[i, fix, :2] + err[fix]
     jumps = []
     for i, s, jx, jy in gps_jumps:
@@ -147,17 +152,19 @@ def simulate(
     rel_r = np.zeros((n, n, k + 1))
     rel_b = np.zeros((n, n, k + 1))
     rng = np.random.default_rng([seed, 1000])
+    signs = bias_signs(seed, 1000, 2 * n * n).reshape(n, n, 2)
     for i in range(n):
         for j in range(n):
             if i == j:
                 continue
             d = truth[j, :, :2] - truth[i, :, :2]
-            rel_r[i, j] = np.hypot(d[:, 0], d[:, 1]) + SHRINK * b.range_m * rng.uniform(
-                -1, 1, k + 1
-            )
+            e_r = error(model, b.range_m, rng.uniform(-1, 1, k + 1), signs[i, j, 0])
+            rel_r[i, j] = np.hypot(d[:, 0], d[:, 1]) + e_r
             brg = np.arctan2(d[:, 1], d[:, 0]) - truth[i, :, 2]
             brg = wrap_angles(brg)
-            rel_b[i, j] = brg + SHRINK * b.bearing_rad * rng.uniform(-1, 1, k + 1)
+            rel_b[i, j] = brg + error(
+                model, b.bearing_rad, rng.uniform(-1, 1, k + 1), signs[i, j, 1]
+            )
     return Scenario(
         names=[r.name for r in robots],
         dt=dt,
@@ -172,4 +179,5 @@ def simulate(
         rel_range=rel_r,
         rel_bearing=rel_b,
         jumps=jumps,
+        errors=model,
     )
