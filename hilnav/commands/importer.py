@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from hilnav.commands import add_compression
 from hilnav.errors import CliError
 
 
@@ -23,12 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     vp.add_argument("out", help="MCAP log to write")
     vp.add_argument("--robot", default="vp", help="robot name in the topics (default vp)")
     vp.add_argument("--duration", type=float, help="only the first S seconds")
-    vp.add_argument(
-        "--compression",
-        default="zstd",
-        choices=("zstd", "lz4", "none"),
-        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
-    )
+    add_compression(vp)
     vp.set_defaults(func=run_victoria_park)
     mr = isub.add_parser(
         "mrclam",
@@ -44,12 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     mr.add_argument("--seconds", type=float, help="only S seconds (from the start)")
     mr.add_argument("--start", type=float, default=0.0, help="skip the first S seconds of the run")
     mr.add_argument("--robots", help="robot numbers to import, e.g. 1,2 (default: all)")
-    mr.add_argument(
-        "--compression",
-        default="zstd",
-        choices=("zstd", "lz4", "none"),
-        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
-    )
+    add_compression(mr)
     mr.set_defaults(func=run_mrclam)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 

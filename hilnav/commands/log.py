@@ -9,6 +9,7 @@ import os
 import sys
 from pathlib import Path
 
+from hilnav.commands import add_compression
 from hilnav.errors import CliError
 
 
@@ -47,12 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     rec.add_argument("input", metavar="IN", help="truncated MCAP log")
     rec.add_argument("output", metavar="OUT", help="new MCAP log to write")
-    rec.add_argument(
-        "--compression",
-        default="zstd",
-        choices=("zstd", "lz4", "none"),
-        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
-    )
+    add_compression(rec)
     rec.set_defaults(func=run_recover)
     can_ = lsub.add_parser(
         "export-can",

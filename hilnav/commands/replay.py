@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from hilnav.commands import add_compression
 from hilnav.errors import CliError
 
 
@@ -14,7 +15,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "replay",
         help="feed a log's device messages through the services again (deterministic)",
-        description="Feed the recorded device messages (odometry, gyro, gps, ir) of LOG, or "
+        description="Feed the recorded device messages (odometry, gyro, gps, ir; a data "
+        "set's controls, scans, velocities, range-bearing) of LOG, or "
         "with --from-raw the raw device bytes decoded again by the drivers' codecs, through "
         "the services (hilnav.pipeline) as fast as possible, and write a new log with the "
         "new outputs. Same input and parameters give the same output bytes. Prints a JSON "
@@ -29,16 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--pipeline",
         default="auto",
-        choices=("auto", "daemon", "landmark-slam"),
-        help="services to run: the daemon's (Pioneer sensors) or EKF-SLAM over controls and "
-        "landmark scans (imported data sets); auto picks by the log's content",
+        choices=("auto", "daemon", "landmark-slam", "velocity"),
+        help="services to run: the daemon's (Pioneer sensors), EKF-SLAM over controls and "
+        "landmark scans (Victoria Park), or every robot's velocity-odometry services at once "
+        "(MRCLAM); auto picks by the log's content",
     )
-    p.add_argument(
-        "--compression",
-        default="zstd",
-        choices=("zstd", "lz4", "none"),
-        help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
-    )
+    add_compression(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 

@@ -1,7 +1,7 @@
 """``hilnav import mrclam``: a UTIAS MRCLAM run as a multi-robot hilnav MCAP log.
 
 Uses the MRCLAM loader (``localization.mrclam.load_mrclam``: barcodes translated to
-subjects, unknown barcodes dropped and counted). Robot subject n is the robot ``r<n>``,
+subjects, unknown barcodes dropped and counted, over the whole files). Robot subject n is the robot ``r<n>``,
 landmark subject n is the target ``l<n>``. Per robot, with log time = publish time =
 the message's stamp (the data set's clock in ns, read to the microsecond):
 
