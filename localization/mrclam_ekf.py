@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from localization.covariance_intersection import ci_update, ci_weight
 from localization.mrclam import MrclamRun, RobotRun
 from numerics import ekf
 from numerics.angles import wrap, wrap_angle
@@ -50,27 +51,38 @@ from numerics.rangebearing import range_bearing
 
 @dataclass(frozen=True)
 class MrclamEkfConfig:
-    """Noise model and filter settings (1-sigma; derivation in the module docstring
-    and docs/algorithms.md). Defaults come from the data README's error percentiles
-    (sigma = p95 / 1.96) and physical reasoning, never fitted to one run's score."""
+    """Noise model and filter settings (1-sigma). Every default is derived in
+    docs/algorithms.md from the data README's error percentiles and the same
+    statistics over longer windows (sigma = p95 / 1.96), never fitted to a score."""
 
     #: Commands act this much later than stamped (README: truth trails by 0.16-0.20 s).
     command_lag_s: float = 0.18
-    #: Window over which the velocity sigmas below are defined (README: 0.2 s).
-    noise_window_s: float = 0.2
-    v_sigma_mps: float = 0.005
-    v_sigma_rel: float = 0.2
-    w_sigma_radps: float = 0.12 / 1.96
+    #: Window over which the velocity sigmas below are defined: the random walk is
+    #: calibrated on the drift over this horizon (the errors are not white below it).
+    noise_window_s: float = 10.0
+    #: sigma of the window-averaged forward velocity: v0 + kv |v| (m/s).
+    v_sigma_mps: float = 0.0037
+    v_sigma_rel: float = 0.04
+    #: sigma of the window-averaged angular velocity: w0 + kw |w| (rad/s).
+    w_sigma_radps: float = 0.0114
     w_sigma_rel: float = 0.0
+    #: Landmark range sigma = rel * predicted range (README p95 / 1.96), bearing sigma.
     landmark_range_rel: float = 0.095 / 1.96
     landmark_bearing_rad: float = 0.027 / 1.96
     robot_range_rel: float = 0.078 / 1.96
     robot_bearing_rad: float = 0.026 / 1.96
     range_sigma_min_m: float = 0.02
+    #: Correlation time of a robot's measurement errors (AR(1) variance inflation).
+    error_correlation_s: float = 5.0
+    #: "robot": one error process per robot (all subjects); "subject": per subject.
+    correlation_scope: str = "robot"
     #: Chi-square gate probability (2 dof) for landmark and robot measurements.
     gate_probability: float = 0.999
-    #: Covariance intersection weight: "det" or "trace" of the fused covariance.
+    #: Covariance intersection weight: minimise "det" or "trace" of the fused covariance.
     ci_criterion: str = "det"
+    #: "observer": a robot-robot measurement updates its observer only; "both": the
+    #: observed robot as well (each side a CI update from the other's prior).
+    peer_update: str = "both"
     #: Initial sigma (x, y, theta) around the truth at the run's start.
     init_sigma: tuple[float, float, float] = (0.05, 0.05, 0.05)
 
@@ -79,6 +91,12 @@ class MrclamEkfConfig:
             raise ValueError(f"gate_probability must be in (0, 1), got {self.gate_probability}")
         if self.ci_criterion not in ("det", "trace"):
             raise ValueError(f"ci_criterion must be 'det' or 'trace', got {self.ci_criterion!r}")
+        if self.correlation_scope not in ("robot", "subject"):
+            raise ValueError(
+                f"correlation_scope must be 'robot' or 'subject', got {self.correlation_scope!r}"
+            )
+        if self.peer_update not in ("observer", "both"):
+            raise ValueError(f"peer_update must be 'observer' or 'both', got {self.peer_update!r}")
         if not self.noise_window_s > 0.0:
             raise ValueError(f"noise_window_s must be > 0, got {self.noise_window_s}")
 
@@ -91,7 +109,8 @@ class MrclamEkfConfig:
 @dataclass
 class EkfTrack:
     """One robot's EKF estimates, one row per event that touched it (its odometry
-    samples, shifted by the lag, and its measurements), times on the data set's clock."""
+    samples, shifted by the lag, and the measurements that concern it), times on the
+    data set's clock, non-decreasing."""
 
     robot: int
     t: np.ndarray  # (n,) seconds
@@ -111,50 +130,14 @@ class EkfTrack:
         return np.sqrt(np.maximum(np.diagonal(self.cov, axis1=1, axis2=2), 0.0))
 
 
-def ci_weight(a: np.ndarray, r: np.ndarray, criterion: str = "det", p=None, h=None) -> float:
-    """Covariance-intersection weight w in (0, 1] of the prior (1 = ignore the measurement).
-
-    "det": with A = H P H^T and lambda_k the eigenvalues of R'^-1 A, det of the fused
-    information is w det(P^-1) prod_k (lambda_k + w (1 - lambda_k)) (Sylvester), a
-    log-concave function of w; its maximiser solves
-    1/w + sum_k (1 - lambda_k) / (lambda_k + w (1 - lambda_k)) = 0, and is w = 1 when
-    sum_k lambda_k <= 3. "trace": golden-section search of trace P+(w) (needs p, h).
-    """
-    if criterion == "trace":
-        return _ci_weight_trace(p, h, r)
-    lam = np.linalg.eigvals(np.linalg.solve(r, a)).real
-    lam = np.maximum(lam, 0.0)
-    if lam.sum() <= 3.0:
+def ar1_inflation(dt: float, tau: float) -> float:
+    """(1 + rho) / (1 - rho) with rho = exp(-dt / tau): the variance factor under which
+    errors of an AR(1) process sampled every dt carry, summed, the information they
+    really hold (the long-run variance of their mean); 1 for tau <= 0 or the first."""
+    if tau <= 0.0 or not dt < math.inf:
         return 1.0
-    lo, hi = 0.0, 1.0
-    for _ in range(60):
-        w = 0.5 * (lo + hi)
-        g = 1.0 / w + sum((1.0 - lk) / (lk + w * (1.0 - lk)) for lk in lam)
-        lo, hi = (w, hi) if g > 0.0 else (lo, w)
-    return 0.5 * (lo + hi)
-
-
-def _ci_posterior(p: np.ndarray, h: np.ndarray, r: np.ndarray, w: float) -> np.ndarray:
-    y = w * np.linalg.inv(p) + (1.0 - w) * h.T @ np.linalg.solve(r, h)
-    return np.linalg.inv(y)
-
-
-def _ci_weight_trace(p: np.ndarray, h: np.ndarray, r: np.ndarray) -> float:
-    lo, hi = 1e-3, 1.0
-    g = (math.sqrt(5.0) - 1.0) / 2.0
-    c, d = hi - g * (hi - lo), lo + g * (hi - lo)
-    fc, fd = (np.trace(_ci_posterior(p, h, r, w)) for w in (c, d))
-    for _ in range(40):
-        if fc < fd:
-            hi, d, fd = d, c, fc
-            c = hi - g * (hi - lo)
-            fc = np.trace(_ci_posterior(p, h, r, c))
-        else:
-            lo, c, fc = c, d, fd
-            d = lo + g * (hi - lo)
-            fd = np.trace(_ci_posterior(p, h, r, d))
-    w = 0.5 * (lo + hi)
-    return 1.0 if np.trace(p) <= np.trace(_ci_posterior(p, h, r, w)) else w
+    rho = math.exp(-max(dt, 1e-9) / tau)
+    return (1.0 + rho) / (1.0 - rho)
 
 
 class _Filter:
@@ -166,6 +149,7 @@ class _Filter:
         self.w = 0.0
 
     def predict_to(self, t: float) -> None:
+        """Integrate the held command (v, w) from the filter's time to ``t``."""
         dt = t - self.t
         if dt <= 0.0:
             return
@@ -179,43 +163,24 @@ class _Filter:
         self.P = ekf.predict_covariance(self.P, f, g, q)
         self.t = t
 
-    def update(
-        self, z: np.ndarray, zhat: np.ndarray, h: np.ndarray, r: np.ndarray, gate: float, w=1.0
-    ) -> tuple[bool, float]:
-        """Gate on the NIS, then the (CI-weighted when w < 1) Joseph update."""
-        nu = np.array([z[0] - zhat[0], wrap_angle(z[1] - zhat[1])])
-        _, s_, s_inv = ekf.innovation(self.P, h, r)
-        d2 = ekf.nis(nu, s_inv)
-        if not d2 <= gate:
-            return False, d2
-        if w is None:  # covariance intersection, weight chosen here
-            w = ci_weight(h @ self.P @ h.T, r, self.cfg.ci_criterion, self.P, h)
-            if w >= 1.0:
-                return True, d2
-        p = self.P / w if w < 1.0 else self.P
-        rr = r / (1.0 - w) if w < 1.0 else r
-        ph, _, s_inv = ekf.innovation(p, h, rr)
-        self.s, self.P = ekf.joseph_update(self.s, p, nu, h, rr, ph, s_inv)
-        self.P = 0.5 * (self.P + self.P.T)
-        return True, d2
+
+def _innovation(z: np.ndarray, zhat: np.ndarray) -> np.ndarray:
+    return np.array([z[0] - zhat[0], wrap_angle(z[1] - zhat[1])])
 
 
-def _events(run: MrclamRun, robots: list[int], lag: float) -> tuple[np.ndarray, np.ndarray]:
-    """Merged stream: rows (time, kind, robot, a, b, c) sorted by (time, kind, robot),
-    kind 0 = command (a = v, b = w), 1 = measurement (a = subject, b = r, c = phi)."""
+def _events(run: MrclamRun, robots: list[int], lag: float) -> np.ndarray:
+    """Merged stream: rows (time, kind, robot, a, b, c) sorted by (time, kind, robot,
+    file order), kind 0 = command (a = v, b = w), 1 = measurement (a = subject, b = r,
+    c = phi). Commands are stamped ``lag`` later than in the file."""
     rows = []
     for n in robots:
         o = run.robots[n].odometry
-        rows.append(
-            np.column_stack(
-                [o[:, 0] + lag, np.zeros(len(o)), np.full(len(o), n), o[:, 1:], 0 * o[:, 0]]
-            )
-        )
+        z = np.zeros(len(o))
+        rows.append(np.column_stack([o[:, 0] + lag, z, z + n, o[:, 1:], z]))
         m = run.robots[n].measurements
         rows.append(np.column_stack([m[:, 0], np.ones(len(m)), np.full(len(m), n), m[:, 1:]]))
     ev = np.concatenate(rows)
-    order = np.lexsort((ev[:, 2], ev[:, 1], ev[:, 0]))
-    return ev[order], order
+    return ev[np.lexsort((ev[:, 2], ev[:, 1], ev[:, 0]))]
 
 
 def _initial(robot: RobotRun, t0: float, sigma) -> tuple[np.ndarray, np.ndarray]:
@@ -224,6 +189,109 @@ def _initial(robot: RobotRun, t0: float, sigma) -> tuple[np.ndarray, np.ndarray]
         k = int(np.searchsorted(robot.truth[:, 0], t0))
         pose = robot.truth[min(k, len(robot.truth) - 1), 1:][None]
     return pose[0].astype(float), np.diag(np.square(np.asarray(sigma, float)))
+
+
+class _Run:
+    """The filters of one run_ekf call, their recorded tracks and counts."""
+
+    def __init__(self, run: MrclamRun, ids: list[int], cfg: MrclamEkfConfig, n_events) -> None:
+        t0 = run.start_s
+        self.cfg, self.marks, self.gate = cfg, run.landmarks, cfg.gate
+        self.f = {n: _Filter(*_initial(run.robots[n], t0, cfg.init_sigma), t0, cfg) for n in ids}
+        size = {n: 1 + 2 * n_events[n] for n in ids}
+        self.tt = {n: np.empty(size[n]) for n in ids}
+        self.mm = {n: np.empty((size[n], 3)) for n in ids}
+        self.cc = {n: np.empty((size[n], 3, 3)) for n in ids}
+        self.k = dict.fromkeys(ids, 0)
+        self.counts = {n: Counter() for n in ids}
+        self.gated: dict[int, list] = {n: [] for n in ids}
+        self.last: dict[tuple[int, int], float] = {}
+        for n in ids:
+            self.record(n)
+
+    def record(self, n: int) -> None:
+        f, i = self.f[n], self.k[n]
+        self.tt[n][i], self.mm[n][i], self.cc[n][i] = f.t, f.s, f.P
+        self.k[n] = i + 1
+
+    def tracks(self) -> dict[int, EkfTrack]:
+        return {
+            n: EkfTrack(
+                n, self.tt[n][:k], self.mm[n][:k], self.cc[n][:k], self.counts[n], self.gated[n]
+            )
+            for n, k in self.k.items()
+        }
+
+    def _key(self, n: int, subj: int) -> tuple[int, int]:
+        return (n, subj if self.cfg.correlation_scope == "subject" else 0)
+
+    def _r(self, n: int, t: float, subj: int, rel: float, bearing: float, r_hat: float):
+        """(R, inflation) of a measurement of robot n at t: range sigma proportional to
+        the predicted range, and the AR(1) variance factor of the time since the last
+        measurement used (of any subject or of this one, by scope)."""
+        dt = t - self.last.get(self._key(n, subj), -math.inf)
+        sr = max(self.cfg.range_sigma_min_m, rel * r_hat)
+        return np.diag([sr * sr, bearing * bearing]), ar1_inflation(
+            dt, self.cfg.error_correlation_s
+        )
+
+    def _used(self, n: int, t: float, subj: int) -> None:
+        self.last[self._key(n, subj)] = t
+
+    def landmark(self, n: int, t: float, subj: int, z: np.ndarray) -> None:
+        f, mark, cfg = self.f[n], self.marks[subj], self.cfg
+        zhat, hs, hm = range_bearing(f.s, mark[0], mark[1])
+        if zhat[0] < 1e-6:
+            self.counts[n]["landmark_on_robot"] += 1
+            return
+        r, infl = self._r(n, t, subj, cfg.landmark_range_rel, cfg.landmark_bearing_rad, zhat[0])
+        rm = hm @ np.diag([mark[2] ** 2, mark[3] ** 2]) @ hm.T  # the surveyed position
+        nu = _innovation(z, zhat)
+        # Gate on the measurement's own (marginal) noise; update with the inflated one.
+        d2 = ekf.nis(nu, np.linalg.inv(hs @ f.P @ hs.T + r + rm))
+        if not d2 <= self.gate:
+            self.counts[n]["landmark_gated"] += 1
+            self.gated[n].append((t, subj, d2))
+            return
+        r = infl * r + rm
+        ph, _, s_inv = ekf.innovation(f.P, hs, r)
+        f.s, f.P = ekf.joseph_update(f.s, f.P, nu, hs, r, ph, s_inv)
+        f.P = 0.5 * (f.P + f.P.T)
+        self._used(n, t, subj)
+        self.counts[n]["landmark_accepted"] += 1
+
+    def robot(self, n: int, t: float, subj: int, z: np.ndarray) -> None:
+        """Robot n measured robot subj: CI update of n (and of subj, peer_update "both"),
+        both from the priors, so the measurement enters each side once."""
+        f, peer, cfg = self.f[n], self.f[subj], self.cfg
+        peer.predict_to(t)
+        zhat, hs, hm = range_bearing(f.s, peer.s[0], peer.s[1])
+        if zhat[0] < 1e-6:
+            self.counts[n]["robot_on_robot"] += 1
+            return
+        r, infl = self._r(n, t, subj, cfg.robot_range_rel, cfg.robot_bearing_rad, zhat[0])
+        hp = np.zeros((2, 3))
+        hp[:, :2] = hm  # d(r, phi) / d(peer pose): the bearing does not see its heading
+        a_obs = hs @ f.P @ hs.T  # n's uncertainty, seen in the measurement
+        a_peer = hp @ peer.P @ hp.T  # the peer's
+        nu = _innovation(z, zhat)
+        d2 = ekf.nis(nu, np.linalg.inv(a_obs + a_peer + r))
+        if not d2 <= self.gate:
+            self.counts[n]["robot_gated"] += 1
+            self.gated[n].append((t, subj, d2))
+            return
+        r_obs = infl * r + a_peer
+        r_peer = infl * r + a_obs
+        w = ci_weight(f.P, hs, r_obs, cfg.ci_criterion)
+        f.s, f.P = ci_update(f.s, f.P, nu, hs, r_obs, w)
+        self.counts[n]["robot_accepted" if w < 1.0 else "robot_no_gain"] += 1
+        if cfg.peer_update == "both":
+            wp = ci_weight(peer.P, hp, r_peer, cfg.ci_criterion)
+            peer.s, peer.P = ci_update(peer.s, peer.P, nu, hp, r_peer, wp)
+            self.counts[subj]["seen_accepted" if wp < 1.0 else "seen_no_gain"] += 1
+            if wp < 1.0:
+                self.record(subj)
+        self._used(n, t, subj)
 
 
 def run_ekf(
@@ -237,119 +305,65 @@ def run_ekf(
     Every robot starts at the run's start, at the truth there with ``init_sigma``, at
     rest until its first command acts. Measurements of a subject that is neither a
     landmark of the map nor a robot being run, non-finite or non-positive ranges, and
-    measurements stamped before the start are counted (``EkfTrack.counts``) and skipped.
+    measurements stamped before the start are counted (``EkfTrack.counts``) and skipped;
+    so are robot-robot measurements when ``cooperative`` is False.
     """
     cfg = config or MrclamEkfConfig()
-    ids = sorted(run.robots) if robots is None else list(robots)
+    ids = sorted(run.robots) if robots is None else list(dict.fromkeys(robots))
     for n in ids:
         if n not in run.robots:
             raise ValueError(f"robot {n} is not in {run.directory} (has {sorted(run.robots)})")
-    t0 = run.start_s
-    filters = {n: _Filter(*_initial(run.robots[n], t0, cfg.init_sigma), t0, cfg) for n in ids}
-    ev, _ = _events(run, ids, cfg.command_lag_s)
-    size = {n: 1 + int(np.sum(ev[:, 2] == n)) for n in ids}
-    tt = {n: np.empty(size[n]) for n in ids}
-    mm = {n: np.empty((size[n], 3)) for n in ids}
-    cc = {n: np.empty((size[n], 3, 3)) for n in ids}
-    k = dict.fromkeys(ids, 0)
-    counts = {n: Counter() for n in ids}
-    gated: dict[int, list] = {n: [] for n in ids}
-    gate = cfg.gate
-
-    def record(n: int) -> None:
-        f, i = filters[n], k[n]
-        tt[n][i], mm[n][i], cc[n][i] = f.t, f.s, f.P
-        k[n] = i + 1
-
-    for n in ids:
-        record(n)
+    ev = _events(run, ids, cfg.command_lag_s)
+    st = _Run(run, ids, cfg, {n: int(np.sum(ev[:, 2] == n)) for n in ids})
     for t, kind, rn, a, b, c in ev.tolist():
         n = int(rn)
-        f = filters[n]
+        f, counts = st.f[n], st.counts[n]
         if t < f.t:
-            counts[n]["before_start"] += 1
+            counts["before_start"] += 1
             continue
         f.predict_to(t)
         if kind == 0.0:
             f.v, f.w = a, b
-            counts[n]["odometry"] += 1
-            record(n)
-            continue
-        subj = int(a)
-        z = np.array([b, c])
-        if not (math.isfinite(b) and math.isfinite(c) and b > 0.0):
-            counts[n]["invalid"] += 1
-        elif subj in run.landmarks:
-            _landmark(f, subj, z, run.landmarks[subj], cfg, gate, counts[n], gated[n], t)
-        elif subj in filters and subj != n:
-            if not cooperative:
-                counts[n]["robot_ignored"] += 1
+            counts["odometry"] += 1
+        elif not (math.isfinite(b) and math.isfinite(c) and b > 0.0):
+            counts["invalid"] += 1
+        elif int(a) in run.landmarks:
+            st.landmark(n, t, int(a), np.array([b, c]))
+        elif int(a) in st.f and int(a) != n:
+            if cooperative:
+                st.robot(n, t, int(a), np.array([b, c]))
             else:
-                peer = filters[subj]
-                peer.predict_to(t)
-                _robot(f, peer, subj, z, cfg, gate, counts[n], gated[n], t)
-        elif subj in run.robots:
-            counts[n]["robot_not_run"] += 1
+                counts["robot_ignored"] += 1
+        elif int(a) in run.robots:
+            counts["robot_not_run"] += 1
         else:
-            counts[n]["unknown_subject"] += 1
-        record(n)
-    return {
-        n: EkfTrack(n, tt[n][: k[n]], mm[n][: k[n]], cc[n][: k[n]], counts[n], gated[n])
-        for n in ids
-    }
-
-
-def _landmark(f: _Filter, subj, z, mark, cfg, gate, counts, gated, t) -> None:
-    zhat, hs, hm = range_bearing(f.s, mark[0], mark[1])
-    if zhat[0] < 1e-6:
-        counts["landmark_on_robot"] += 1
-        return
-    sr = max(cfg.range_sigma_min_m, cfg.landmark_range_rel * zhat[0])
-    r = (
-        np.diag([sr * sr, cfg.landmark_bearing_rad**2])
-        + hm @ np.diag([mark[2] ** 2, mark[3] ** 2]) @ hm.T
-    )
-    ok, d2 = f.update(z, zhat, hs, r, gate)
-    if ok:
-        counts["landmark_accepted"] += 1
-    else:
-        counts["landmark_gated"] += 1
-        gated.append((t, subj, d2))
-
-
-def _robot(f: _Filter, peer: _Filter, subj, z, cfg, gate, counts, gated, t) -> None:
-    zhat, hs, hm = range_bearing(f.s, peer.s[0], peer.s[1])
-    if zhat[0] < 1e-6:
-        counts["robot_on_robot"] += 1
-        return
-    sr = max(cfg.range_sigma_min_m, cfg.robot_range_rel * zhat[0])
-    r = np.diag([sr * sr, cfg.robot_bearing_rad**2]) + hm @ peer.P[:2, :2] @ hm.T
-    before = f.P
-    ok, d2 = f.update(z, zhat, hs, r, gate, w=None)
-    if not ok:
-        counts["robot_gated"] += 1
-        gated.append((t, subj, d2))
-    elif f.P is before:
-        counts["robot_no_gain"] += 1  # CI weight 1: the peer added nothing
-    else:
-        counts["robot_accepted"] += 1
+            counts["unknown_subject"] += 1
+        st.record(n)
+    return st.tracks()
 
 
 def score_track(track: EkfTrack, robot: RobotRun, n_sigma: float = 3.0) -> dict:
-    """RMSE and n-sigma containment against the truth at the track's own instants
-    (the commands are shifted by the lag, so the track is on the truth's clock), only
-    where the truth exists (``truth_at``'s mask). Containment: x, y and theta (wrapped)
-    all within n_sigma standard deviations; ``containment_xy``: x and y only."""
+    """RMSE and n-sigma containment against the truth at the track's own instants,
+    only where the truth exists (``truth_at``'s mask). The commands are shifted by the
+    lag, so the track is on the truth's clock: no further shift. Containment: x, y and
+    theta (wrapped) all within n_sigma standard deviations; ``containment_xy``: x, y."""
     pose, ok = robot.truth_at(track.t)
     e = track.mean[ok] - pose[ok]
     e[:, 2] = wrap(e[:, 2])
-    lim = n_sigma * track.sigma()[ok]
-    inside = np.abs(e) <= lim
+    inside = np.abs(e) <= n_sigma * track.sigma()[ok]
     n = int(ok.sum())
+    if not n:
+        return {
+            "scored": 0,
+            "rmse_m": math.nan,
+            "heading_rmse_rad": math.nan,
+            "containment": math.nan,
+            "containment_xy": math.nan,
+        }
     return {
         "scored": n,
-        "rmse_m": float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))) if n else math.nan,
-        "heading_rmse_rad": float(np.sqrt(np.mean(e[:, 2] ** 2))) if n else math.nan,
-        "containment": float(np.mean(inside.all(axis=1))) if n else math.nan,
-        "containment_xy": float(np.mean(inside[:, :2].all(axis=1))) if n else math.nan,
+        "rmse_m": float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))),
+        "heading_rmse_rad": float(np.sqrt(np.mean(e[:, 2] ** 2))),
+        "containment": float(np.mean(inside.all(axis=1))),
+        "containment_xy": float(np.mean(inside[:, :2].all(axis=1))),
     }
