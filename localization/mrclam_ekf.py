@@ -149,19 +149,27 @@ class _Filter:
         self.w = 0.0
 
     def predict_to(self, t: float) -> None:
-        """Integrate the held command (v, w) from the filter's time to ``t``."""
+        """Integrate the held command (v, w) from the filter's time to ``t``:
+        P' = F P F^T + G Q G^T with Q = diag(sigma_v^2, sigma_w^2) tau / dt, the
+        variance of the velocities averaged over dt (so G Q G^T grows with dt)."""
         dt = t - self.t
         if dt <= 0.0:
             return
         c = self.cfg
-        u = np.array([self.v * dt, self.w * dt])
-        f, g = motion_jacobians(self.s, u, 0.5, True)
+        s, f, g = velocity_motion(self.s, self.v, self.w, dt)
         sv = c.v_sigma_mps + c.v_sigma_rel * abs(self.v)
         sw = c.w_sigma_radps + c.w_sigma_rel * abs(self.w)
-        q = np.diag([sv * sv, sw * sw]) * (c.noise_window_s * dt)
-        self.s = motion(self.s, u, 0.5, True)
-        self.P = ekf.predict_covariance(self.P, f, g, q)
-        self.t = t
+        q = np.diag([sv * sv, sw * sw]) * (c.noise_window_s / dt)
+        self.s, self.P, self.t = s, ekf.predict_covariance(self.P, f, g, q), t
+
+
+def velocity_motion(
+    s: np.ndarray, v: float, w: float, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(s', F = ds'/ds, G = ds'/d(v, w)) of dt seconds at constant (v, w): the exact arc
+    of numerics.motion (ds = v dt, dtheta = w dt, midpoint heading, chord factor)."""
+    f, g = motion_jacobians(s, np.array([v * dt, w * dt]), 0.5, True)
+    return motion(s, np.array([v * dt, w * dt]), 0.5, True), f, g * dt
 
 
 def _innovation(z: np.ndarray, zhat: np.ndarray) -> np.ndarray:
