@@ -21,7 +21,8 @@ Choice of w: minimise det P+ (default) or trace P+.
   (n - m) / w + sum_k (1 - lambda_k) / (lambda_k + w (1 - lambda_k)) = 0,
   found by bisection; the optimum is w = 1 (no update) when sum_k lambda_k <= n, i.e.
   when the measurement carries too little information to beat the prior alone.
-- trace: golden-section search of trace P+(w) on [1e-3, 1].
+- trace: golden-section search of trace P+(w) on [1e-3, 1]; so is either criterion
+  judged on a leading block of P+ only (the pose, without nuisance states).
 """
 
 from __future__ import annotations
@@ -33,12 +34,21 @@ import numpy as np
 from numerics import ekf
 
 
-def ci_weight(p: np.ndarray, h: np.ndarray, r: np.ndarray, criterion: str = "det") -> float:
-    """The CI weight w in (0, 1] of the prior ``p`` (1: the measurement adds nothing)."""
-    if criterion == "trace":
-        return _weight_trace(p, h, r)
-    if criterion != "det":
+def ci_weight(
+    p: np.ndarray, h: np.ndarray, r: np.ndarray, criterion: str = "det", block: int | None = None
+) -> float:
+    """The CI weight w in (0, 1] of the prior ``p`` (1: the measurement adds nothing).
+
+    ``block``: judge the criterion on the leading block P+[:block, :block] only (e.g. the
+    pose of a state that also holds nuisance biases), by golden-section search.
+    """
+    if criterion not in ("det", "trace"):
         raise ValueError(f"criterion must be 'det' or 'trace', got {criterion!r}")
+    if block is not None and block < p.shape[0]:
+        measure = np.linalg.det if criterion == "det" else np.trace
+        return _golden(lambda w: float(measure(ci_posterior(p, h, r, w)[:block, :block])))
+    if criterion == "trace":
+        return _golden(lambda w: float(np.trace(ci_posterior(p, h, r, w))))
     n, m = p.shape[0], h.shape[0]
     lam = np.maximum(np.linalg.eigvals(np.linalg.solve(r, h @ p @ h.T)).real, 0.0)
     if lam.sum() <= n:
@@ -72,15 +82,17 @@ def ci_update(
     return x, 0.5 * (p + p.T)
 
 
-def _weight_trace(p: np.ndarray, h: np.ndarray, r: np.ndarray) -> float:
-    def f(w: float) -> float:
-        return float(np.trace(ci_posterior(p, h, r, w)))
-
+def _golden(f) -> float:
+    """Minimiser of f on [1e-3, 1] by golden-section search (f unimodal there); 1 when f
+    does not decrease away from 1 or the search does not beat f(1)."""
+    f1 = f(1.0)
+    if f(1.0 - 1e-3) >= f1:
+        return 1.0
     g = (math.sqrt(5.0) - 1.0) / 2.0
     lo, hi = 1e-3, 1.0
     c, d = hi - g * (hi - lo), lo + g * (hi - lo)
     fc, fd = f(c), f(d)
-    for _ in range(40):
+    for _ in range(30):
         if fc < fd:
             hi, d, fd = d, c, fc
             c = hi - g * (hi - lo)
@@ -90,4 +102,4 @@ def _weight_trace(p: np.ndarray, h: np.ndarray, r: np.ndarray) -> float:
             d = lo + g * (hi - lo)
             fd = f(d)
     w = 0.5 * (lo + hi)
-    return w if f(w) < float(np.trace(p)) else 1.0
+    return w if f(w) < f1 else 1.0

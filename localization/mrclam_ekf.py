@@ -43,9 +43,9 @@ import numpy as np
 
 from localization.covariance_intersection import ci_update, ci_weight
 from localization.mrclam import MrclamRun, RobotRun
+from localization.mrclam_motion import NX, biased_motion
 from numerics import ekf
 from numerics.angles import wrap, wrap_angle
-from numerics.motion import motion, motion_jacobians
 from numerics.rangebearing import range_bearing
 
 
@@ -57,15 +57,20 @@ class MrclamEkfConfig:
 
     #: Commands act this much later than stamped (README: truth trails by 0.16-0.20 s).
     command_lag_s: float = 0.18
-    #: Window over which the velocity sigmas below are defined: the random walk is
-    #: calibrated on the drift over this horizon (the errors are not white below it).
+    #: Window over which the white velocity sigmas below are defined (their intensity
+    #: is sigma^2 * window); derived from the drift over 5-40 s windows.
     noise_window_s: float = 10.0
     #: sigma of the window-averaged forward velocity: v0 + kv |v| (m/s).
     v_sigma_mps: float = 0.0037
-    v_sigma_rel: float = 0.04
+    v_sigma_rel: float = 0.028
     #: sigma of the window-averaged angular velocity: w0 + kw |w| (rad/s).
-    w_sigma_radps: float = 0.0114
+    w_sigma_radps: float = 0.0094
     w_sigma_rel: float = 0.0
+    #: Stationary sigma of the speed scale error k and of the turn-rate bias b, and
+    #: their correlation time (Gauss-Markov states; 0 sigmas give a 3-state EKF).
+    speed_scale_sigma: float = 0.031
+    turn_bias_sigma_radps: float = 0.0056
+    bias_tau_s: float = 120.0
     #: Landmark range sigma = rel * predicted range (README p95 / 1.96), bearing sigma.
     landmark_range_rel: float = 0.095 / 1.96
     landmark_bearing_rad: float = 0.027 / 1.96
@@ -73,7 +78,7 @@ class MrclamEkfConfig:
     robot_bearing_rad: float = 0.026 / 1.96
     range_sigma_min_m: float = 0.02
     #: Correlation time of a robot's measurement errors (AR(1) variance inflation).
-    error_correlation_s: float = 5.0
+    error_correlation_s: float = 7.0
     #: "robot": one error process per robot (all subjects); "subject": per subject.
     correlation_scope: str = "robot"
     #: Chi-square gate probability (2 dof) for landmark and robot measurements.
@@ -83,6 +88,9 @@ class MrclamEkfConfig:
     #: "observer": a robot-robot measurement updates its observer only; "both": the
     #: observed robot as well (each side a CI update from the other's prior).
     peer_update: str = "both"
+    #: The track has a row every output_period_s from the run's start (on_grid), and
+    #: one after every measurement update of the robot.
+    output_period_s: float = 0.05
     #: Initial sigma (x, y, theta) around the truth at the run's start.
     init_sigma: tuple[float, float, float] = (0.05, 0.05, 0.05)
 
@@ -97,6 +105,8 @@ class MrclamEkfConfig:
             )
         if self.peer_update not in ("observer", "both"):
             raise ValueError(f"peer_update must be 'observer' or 'both', got {self.peer_update!r}")
+        if not self.output_period_s > 0.0:
+            raise ValueError(f"output_period_s must be > 0, got {self.output_period_s}")
         if not self.noise_window_s > 0.0:
             raise ValueError(f"noise_window_s must be > 0, got {self.noise_window_s}")
 
@@ -108,9 +118,10 @@ class MrclamEkfConfig:
 
 @dataclass
 class EkfTrack:
-    """One robot's EKF estimates, one row per event that touched it (its odometry
-    samples, shifted by the lag, and the measurements that concern it), times on the
-    data set's clock, non-decreasing."""
+    """One robot's EKF estimates: a row every ``output_period_s`` from the run's start
+    (``on_grid``, exact instants: the filter is predicted to them) and one after every
+    measurement update of the robot; times on the data set's (and the truth's) clock,
+    non-decreasing."""
 
     robot: int
     t: np.ndarray  # (n,) seconds
@@ -119,9 +130,12 @@ class EkfTrack:
     counts: Counter = field(default_factory=Counter)
     #: The measurements the gate refused: (time, subject, NIS).
     gated: list[tuple[float, int, float]] = field(default_factory=list)
+    #: (n,) True for the rows of the uniform grid (None: every row).
+    on_grid: np.ndarray | None = None
 
     def index_at(self, t: np.ndarray | float) -> np.ndarray:
-        """Row of the latest estimate at or before each ``t`` (the first row before it)."""
+        """Row of the latest estimate at or before each ``t`` (the first row before it;
+        at most ``output_period_s`` old between grid rows)."""
         i = np.searchsorted(self.t, np.atleast_1d(np.asarray(t, float)), side="right") - 1
         return np.clip(i, 0, len(self.t) - 1)
 
@@ -141,35 +155,46 @@ def ar1_inflation(dt: float, tau: float) -> float:
 
 
 class _Filter:
-    """One robot's EKF: state, covariance, held command and the time it stands at."""
+    """One robot's EKF on (x, y, theta, k, b) (localization/mrclam_motion.py): state,
+    covariance, held command and the time it stands at."""
 
     def __init__(self, s: np.ndarray, p: np.ndarray, t: float, cfg: MrclamEkfConfig) -> None:
-        self.s, self.P, self.t, self.cfg = s, p, t, cfg
+        self.s = np.zeros(NX)
+        self.s[:3] = s
+        self.P = np.zeros((NX, NX))
+        self.P[:3, :3] = p
+        self.P[3, 3] = cfg.speed_scale_sigma**2
+        self.P[4, 4] = cfg.turn_bias_sigma_radps**2
+        self.t, self.cfg = t, cfg
         self.v = 0.0
         self.w = 0.0
 
     def predict_to(self, t: float) -> None:
         """Integrate the held command (v, w) from the filter's time to ``t``:
-        P' = F P F^T + G Q G^T with Q = diag(sigma_v^2, sigma_w^2) tau / dt, the
-        variance of the velocities averaged over dt (so G Q G^T grows with dt)."""
+        P' = F P F^T + G Q G^T + Q_bias, Q = diag(sigma_v^2, sigma_w^2) tau / dt (the
+        variance of white velocity errors averaged over dt: G Q G^T grows with dt) and
+        Q_bias = diag(sigma_k^2, sigma_b^2) (1 - a^2), the Gauss-Markov driving noise."""
         dt = t - self.t
         if dt <= 0.0:
             return
         c = self.cfg
-        s, f, g = velocity_motion(self.s, self.v, self.w, dt)
+        s, f, g = biased_motion(self.s, self.v, self.w, dt, c.bias_tau_s)
         sv = c.v_sigma_mps + c.v_sigma_rel * abs(self.v)
         sw = c.w_sigma_radps + c.w_sigma_rel * abs(self.w)
-        q = np.diag([sv * sv, sw * sw]) * (c.noise_window_s / dt)
-        self.s, self.P, self.t = s, ekf.predict_covariance(self.P, f, g, q), t
+        p = ekf.predict_covariance(
+            self.P, f, g, np.diag([sv * sv, sw * sw]) * (c.noise_window_s / dt)
+        )
+        a2 = f[3, 3] ** 2
+        p[3, 3] += c.speed_scale_sigma**2 * (1.0 - a2)
+        p[4, 4] += c.turn_bias_sigma_radps**2 * (1.0 - a2)
+        self.s, self.P, self.t = s, p, t
 
 
-def velocity_motion(
-    s: np.ndarray, v: float, w: float, dt: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(s', F = ds'/ds, G = ds'/d(v, w)) of dt seconds at constant (v, w): the exact arc
-    of numerics.motion (ds = v dt, dtheta = w dt, midpoint heading, chord factor)."""
-    f, g = motion_jacobians(s, np.array([v * dt, w * dt]), 0.5, True)
-    return motion(s, np.array([v * dt, w * dt]), 0.5, True), f, g * dt
+def _pad(h: np.ndarray) -> np.ndarray:
+    """A measurement Jacobian on the pose (2 x 3 or 2 x 2) on the whole state (2 x NX)."""
+    out = np.zeros((h.shape[0], NX))
+    out[:, : h.shape[1]] = h
+    return out
 
 
 def _innovation(z: np.ndarray, zhat: np.ndarray) -> np.ndarray:
@@ -206,26 +231,46 @@ class _Run:
         t0 = run.start_s
         self.cfg, self.marks, self.gate = cfg, run.landmarks, cfg.gate
         self.f = {n: _Filter(*_initial(run.robots[n], t0, cfg.init_sigma), t0, cfg) for n in ids}
-        size = {n: 1 + 2 * n_events[n] for n in ids}
+        size = {n: 16 + n_events[n] // 2 for n in ids}
         self.tt = {n: np.empty(size[n]) for n in ids}
         self.mm = {n: np.empty((size[n], 3)) for n in ids}
         self.cc = {n: np.empty((size[n], 3, 3)) for n in ids}
         self.k = dict.fromkeys(ids, 0)
+        self.grid = {n: np.zeros(size[n], bool) for n in ids}
+        self.t0, self.next = t0, dict.fromkeys(ids, 1)
         self.counts = {n: Counter() for n in ids}
         self.gated: dict[int, list] = {n: [] for n in ids}
         self.last: dict[tuple[int, int], float] = {}
         for n in ids:
-            self.record(n)
+            self.record(n, True)
 
-    def record(self, n: int) -> None:
+    def record(self, n: int, grid: bool = False) -> None:
         f, i = self.f[n], self.k[n]
-        self.tt[n][i], self.mm[n][i], self.cc[n][i] = f.t, f.s, f.P
+        if i == len(self.tt[n]):  # grow (the grid's size depends on the run's length)
+            for d in (self.tt, self.mm, self.cc, self.grid):
+                d[n] = np.concatenate([d[n], np.zeros_like(d[n])])
+        self.tt[n][i], self.mm[n][i], self.cc[n][i] = f.t, f.s[:3], f.P[:3, :3]
+        self.grid[n][i] = grid
         self.k[n] = i + 1
+
+    def advance(self, n: int, t: float) -> None:
+        """Predict robot n through the grid instants up to ``t``, a row at each."""
+        period, f = self.cfg.output_period_s, self.f[n]
+        while (tg := self.t0 + self.next[n] * period) <= t:
+            f.predict_to(tg)
+            self.record(n, True)
+            self.next[n] += 1
 
     def tracks(self) -> dict[int, EkfTrack]:
         return {
             n: EkfTrack(
-                n, self.tt[n][:k], self.mm[n][:k], self.cc[n][:k], self.counts[n], self.gated[n]
+                n,
+                self.tt[n][:k],
+                self.mm[n][:k],
+                self.cc[n][:k],
+                self.counts[n],
+                self.gated[n],
+                self.grid[n][:k],
             )
             for n, k in self.k.items()
         }
@@ -252,6 +297,7 @@ class _Run:
         if zhat[0] < 1e-6:
             self.counts[n]["landmark_on_robot"] += 1
             return
+        hs = _pad(hs)
         r, infl = self._r(n, t, subj, cfg.landmark_range_rel, cfg.landmark_bearing_rad, zhat[0])
         rm = hm @ np.diag([mark[2] ** 2, mark[3] ** 2]) @ hm.T  # the surveyed position
         nu = _innovation(z, zhat)
@@ -272,14 +318,15 @@ class _Run:
         """Robot n measured robot subj: CI update of n (and of subj, peer_update "both"),
         both from the priors, so the measurement enters each side once."""
         f, peer, cfg = self.f[n], self.f[subj], self.cfg
+        self.advance(subj, t)
         peer.predict_to(t)
         zhat, hs, hm = range_bearing(f.s, peer.s[0], peer.s[1])
         if zhat[0] < 1e-6:
             self.counts[n]["robot_on_robot"] += 1
             return
+        hs = _pad(hs)
         r, infl = self._r(n, t, subj, cfg.robot_range_rel, cfg.robot_bearing_rad, zhat[0])
-        hp = np.zeros((2, 3))
-        hp[:, :2] = hm  # d(r, phi) / d(peer pose): the bearing does not see its heading
+        hp = _pad(hm)  # d(r, phi) / d(peer state): position only
         a_obs = hs @ f.P @ hs.T  # n's uncertainty, seen in the measurement
         a_peer = hp @ peer.P @ hp.T  # the peer's
         nu = _innovation(z, zhat)
@@ -290,11 +337,11 @@ class _Run:
             return
         r_obs = infl * r + a_peer
         r_peer = infl * r + a_obs
-        w = ci_weight(f.P, hs, r_obs, cfg.ci_criterion)
+        w = ci_weight(f.P, hs, r_obs, cfg.ci_criterion, block=3)
         f.s, f.P = ci_update(f.s, f.P, nu, hs, r_obs, w)
         self.counts[n]["robot_accepted" if w < 1.0 else "robot_no_gain"] += 1
         if cfg.peer_update == "both":
-            wp = ci_weight(peer.P, hp, r_peer, cfg.ci_criterion)
+            wp = ci_weight(peer.P, hp, r_peer, cfg.ci_criterion, block=3)
             peer.s, peer.P = ci_update(peer.s, peer.P, nu, hp, r_peer, wp)
             self.counts[subj]["seen_accepted" if wp < 1.0 else "seen_no_gain"] += 1
             if wp < 1.0:
@@ -326,16 +373,21 @@ def run_ekf(
     for t, kind, rn, a, b, c in ev.tolist():
         n = int(rn)
         f, counts = st.f[n], st.counts[n]
-        if t < f.t:
+        if t < run.start_s:
             counts["before_start"] += 1
             continue
-        f.predict_to(t)
+        st.advance(n, t)
         if kind == 0.0:
-            f.v, f.w = a, b
             counts["odometry"] += 1
-        elif not (math.isfinite(b) and math.isfinite(c) and b > 0.0):
+            if a != f.v or b != f.w:  # a new command: the old one acts until now
+                f.predict_to(t)
+                f.v, f.w = a, b
+            continue
+        f.predict_to(t)
+        if not (math.isfinite(b) and math.isfinite(c) and b > 0.0):
             counts["invalid"] += 1
-        elif int(a) in run.landmarks:
+            continue
+        if int(a) in run.landmarks:
             st.landmark(n, t, int(a), np.array([b, c]))
         elif int(a) in st.f and int(a) != n:
             if cooperative:
@@ -347,18 +399,24 @@ def run_ekf(
         else:
             counts["unknown_subject"] += 1
         st.record(n)
+    end = float(ev[-1, 0]) if len(ev) else run.start_s
+    for n in ids:
+        st.advance(n, end)
     return st.tracks()
 
 
 def score_track(track: EkfTrack, robot: RobotRun, n_sigma: float = 3.0) -> dict:
-    """RMSE and n-sigma containment against the truth at the track's own instants,
-    only where the truth exists (``truth_at``'s mask). The commands are shifted by the
-    lag, so the track is on the truth's clock: no further shift. Containment: x, y and
-    theta (wrapped) all within n_sigma standard deviations; ``containment_xy``: x, y."""
-    pose, ok = robot.truth_at(track.t)
-    e = track.mean[ok] - pose[ok]
+    """RMSE and n-sigma containment against the truth at the track's grid instants
+    (uniform in time), only where the truth exists (``truth_at``'s mask). The commands
+    are shifted by the lag, so the track is on the truth's clock: no further shift.
+    Containment: x, y and theta (wrapped) all within n_sigma standard deviations;
+    ``containment_xy``: x and y only."""
+    rows = np.ones(len(track.t), bool) if track.on_grid is None else track.on_grid
+    t, mean, sig = track.t[rows], track.mean[rows], track.sigma()[rows]
+    pose, ok = robot.truth_at(t)
+    e = mean[ok] - pose[ok]
     e[:, 2] = wrap(e[:, 2])
-    inside = np.abs(e) <= n_sigma * track.sigma()[ok]
+    inside = np.abs(e) <= n_sigma * sig[ok]
     n = int(ok.sum())
     if not n:
         return {
