@@ -12,8 +12,9 @@ shifted by the configured lag, so the track is on the truth's clock:
 - realtime_factor: run duration / wall time of the cooperative pass (all robots).
 
 ``--ablations`` adds single-change variants of the cooperative filter (no command lag,
-no AR(1) inflation, the README's 0.2 s noise window, CI by trace, observer-only peer
-update), so the effect of each default can be seen side by side.
+no AR(1) inflation, no bias states (white noise calibrated at 10 s), white noise only
+calibrated at the README's 0.2 s window, AR(1) time 5 s, CI by trace, observer-only
+peer update), so the effect of each default can be seen side by side.
 
 The LAST line is a JSON object with those figures.
 
@@ -104,13 +105,23 @@ def main() -> None:
         variants = {
             "no_command_lag": replace(cfg, command_lag_s=0.0),
             "no_ar1_inflation": replace(cfg, error_correlation_s=0.0),
-            "noise_window_0.2s_readme": replace(
+            "no_bias_states": replace(
                 cfg,
+                speed_scale_sigma=0.0,
+                turn_bias_sigma_radps=0.0,
+                v_sigma_rel=0.04,
+                w_sigma_radps=0.0114,
+            ),
+            "white_noise_at_0.2s_readme": replace(
+                cfg,
+                speed_scale_sigma=0.0,
+                turn_bias_sigma_radps=0.0,
                 noise_window_s=0.2,
-                v_sigma_mps=0.006,
-                v_sigma_rel=0.2,
+                v_sigma_mps=0.010,
+                v_sigma_rel=0.09,
                 w_sigma_radps=0.12 / 1.96,
             ),
+            "ar1_tau_5s": replace(cfg, error_correlation_s=5.0),
             "ci_trace": replace(cfg, ci_criterion="trace"),
             "peer_update_observer": replace(cfg, peer_update="observer"),
         }

@@ -1,52 +1,52 @@
 """EKF localization of the MRCLAM robots (real data), alone or cooperative, for the
-comparison with CP (issue 14 item 4). Models, noises, gating and covariance
-intersection are derived in docs/algorithms.md ("EKF on MRCLAM"); in short:
+comparison with CP (issue 14 item 4). Every model and default is derived in
+docs/algorithms.md ("EKF on the MRCLAM robots"); in short:
 
-**State and motion.** One filter per robot on s = (x, y, theta) (theta continuous). The
-odometry is the commanded (v, w), held between samples (zero-order hold) and applied
-``command_lag_s`` later than its stamp, since the motion-capture truth (and the camera)
-trail the commands by 0.16-0.20 s (data README; default 0.18 s, the middle). A step of
-dt is the exact arc ds = v dt, dtheta = w dt (numerics.motion, kappa = 1/2 with the
-chord factor). The velocity errors are white noise whose average over the README's
-window tau = 0.2 s has sigma_v = v0 + kv |v|, sigma_w = w0 + kw |w|; the step's noise is
-then Q = diag(sigma_v^2, sigma_w^2) tau dt on (ds, dtheta) (variance proportional to dt).
+**State and motion.** One filter per robot on (x, y, theta, k, b): the pose (theta
+continuous), a speed scale error and a turn-rate bias (Gauss-Markov; the motion model
+and its Jacobians are localization/mrclam_motion.py). The odometry is the commanded
+(v, w), held between samples and applied ``command_lag_s`` = 0.18 s after its stamp
+(README: the truth trails the commands by 0.16-0.20 s; the camera is on the truth's
+clock). White velocity errors whose average over ``noise_window_s`` has sigma
+v0 + kv |v| and w0 + kw |w| give Q = diag(sigma_v^2, sigma_w^2) window / dt on the
+velocities averaged over a step of dt, so the pose noise grows in proportion to dt.
 
-**Landmarks.** z = (r, phi) of a known landmark (numerics.rangebearing, bearing
-innovation wrapped with numerics.angles); sigma_r = max(r_min, k_r r_hat) (range-
-proportional, at the predicted range so that an outlier cannot widen its own gate),
-sigma_phi constant, plus the surveyed landmark position covariance through H_m.
-Sigmas are the README's 95th percentiles / 1.96 (Gaussian core; the heavy tail is the
-gate's job). Gate: NIS = nu^T S^-1 nu > chi2_2(p) = -2 ln(1 - p) (p = 0.999: 13.8) ->
-the measurement is counted and named (``EkfTrack.gated``), not used.
+**Landmarks.** z = (r, phi), numerics.rangebearing, bearing innovation wrapped with
+numerics.angles; range sigma proportional to the predicted range, bearing sigma
+constant (README p95 / 1.96), plus the surveyed landmark covariance. The camera's
+errors are correlated in time and across landmarks: R is inflated by the AR(1) factor
+(1 + rho) / (1 - rho), rho = exp(-dt / tau), dt the time since the robot's last used
+measurement. Gate: NIS with the uninflated R above chi2_2(p) = -2 ln(1 - p)
+(p = 0.999: 13.8) -> counted and named (``EkfTrack.gated``), not used.
 
-**Robots.** Robot i measures (r, phi) to robot j. The peer's position enters as an
-uncertain landmark: R' = R + H_m P_j[:2, :2] H_m^T. Estimates of i and j are correlated
-after earlier exchanges, and the correlation is not tracked, so the update is a
-covariance intersection (Julier & Uhlmann 1997) of i's prior with the information of
-the measurement: P+^-1 = w P^-1 + (1 - w) H^T R'^-1 H, i.e. the Kalman update with
-prior P / w and noise R' / (1 - w); w minimises det P+ (closed form below, default) or
-trace P+. The fused estimate is consistent for any correlation, so nothing is counted
-twice; each measurement is used once, by the robot that made it (the peer is not
-updated). The gate uses S = H P H^T + R' (the innovation as if independent).
+**Robots.** Robot i measures (r, phi) to robot j; j's position enters as an uncertain
+landmark. The correlation between the two estimates is not tracked, so both sides are
+covariance intersections (localization/covariance_intersection.py) from the priors:
+i with R + H_j P_j H_j^T, j (``peer_update = "both"``) with R + H_i P_i H_i^T. CI is
+consistent for any correlation, so nothing is counted twice.
 
 **Pure**: one deterministic pass over the merged, time-ordered stream of every robot's
-odometry (shifted) and measurements; no threads, no clocks.
+odometry (shifted) and measurements; no threads, no clocks. The track has a row every
+``output_period_s`` (the filter predicted to that instant) and one after every update.
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from localization.covariance_intersection import ci_update, ci_weight
 from localization.mrclam import MrclamRun, RobotRun
 from localization.mrclam_motion import NX, biased_motion
+from localization.mrclam_track import EkfTrack, score_track
 from numerics import ekf
-from numerics.angles import wrap, wrap_angle
+from numerics.angles import wrap_angle
 from numerics.rangebearing import range_bearing
+
+__all__ = ["EkfTrack", "MrclamEkfConfig", "ar1_inflation", "run_ekf", "score_track"]
 
 
 @dataclass(frozen=True)
@@ -114,34 +114,6 @@ class MrclamEkfConfig:
     def gate(self) -> float:
         """chi2 quantile with 2 degrees of freedom: -2 ln(1 - p)."""
         return -2.0 * math.log1p(-self.gate_probability)
-
-
-@dataclass
-class EkfTrack:
-    """One robot's EKF estimates: a row every ``output_period_s`` from the run's start
-    (``on_grid``, exact instants: the filter is predicted to them) and one after every
-    measurement update of the robot; times on the data set's (and the truth's) clock,
-    non-decreasing."""
-
-    robot: int
-    t: np.ndarray  # (n,) seconds
-    mean: np.ndarray  # (n, 3) x, y, theta (theta continuous)
-    cov: np.ndarray  # (n, 3, 3)
-    counts: Counter = field(default_factory=Counter)
-    #: The measurements the gate refused: (time, subject, NIS).
-    gated: list[tuple[float, int, float]] = field(default_factory=list)
-    #: (n,) True for the rows of the uniform grid (None: every row).
-    on_grid: np.ndarray | None = None
-
-    def index_at(self, t: np.ndarray | float) -> np.ndarray:
-        """Row of the latest estimate at or before each ``t`` (the first row before it;
-        at most ``output_period_s`` old between grid rows)."""
-        i = np.searchsorted(self.t, np.atleast_1d(np.asarray(t, float)), side="right") - 1
-        return np.clip(i, 0, len(self.t) - 1)
-
-    def sigma(self) -> np.ndarray:
-        """(n, 3) standard deviations of x, y, theta."""
-        return np.sqrt(np.maximum(np.diagonal(self.cov, axis1=1, axis2=2), 0.0))
 
 
 def ar1_inflation(dt: float, tau: float) -> float:
@@ -403,33 +375,3 @@ def run_ekf(
     for n in ids:
         st.advance(n, end)
     return st.tracks()
-
-
-def score_track(track: EkfTrack, robot: RobotRun, n_sigma: float = 3.0) -> dict:
-    """RMSE and n-sigma containment against the truth at the track's grid instants
-    (uniform in time), only where the truth exists (``truth_at``'s mask). The commands
-    are shifted by the lag, so the track is on the truth's clock: no further shift.
-    Containment: x, y and theta (wrapped) all within n_sigma standard deviations;
-    ``containment_xy``: x and y only."""
-    rows = np.ones(len(track.t), bool) if track.on_grid is None else track.on_grid
-    t, mean, sig = track.t[rows], track.mean[rows], track.sigma()[rows]
-    pose, ok = robot.truth_at(t)
-    e = mean[ok] - pose[ok]
-    e[:, 2] = wrap(e[:, 2])
-    inside = np.abs(e) <= n_sigma * sig[ok]
-    n = int(ok.sum())
-    if not n:
-        return {
-            "scored": 0,
-            "rmse_m": math.nan,
-            "heading_rmse_rad": math.nan,
-            "containment": math.nan,
-            "containment_xy": math.nan,
-        }
-    return {
-        "scored": n,
-        "rmse_m": float(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2))),
-        "heading_rmse_rad": float(np.sqrt(np.mean(e[:, 2] ** 2))),
-        "containment": float(np.mean(inside.all(axis=1))),
-        "containment_xy": float(np.mean(inside[:, :2].all(axis=1))),
-    }
