@@ -12,7 +12,7 @@ from msgs.geometry import Interval, Pose2D
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
-from msgs.relative import RelativeMeasurement
+from msgs.relative import RelativeMeasurement, RelativeScan
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand
 from msgs.sensors import GpsFix, GpsSatellite, GpsSky, GyroSample, IrScan, IrStatus
 from numerics.angles import wrap_angle
@@ -39,6 +39,7 @@ __all__ = [
     "PoseEstimate",
     "RawBytes",
     "RelativeMeasurement",
+    "RelativeScan",
     "RobotInfo",
     "RobotOdometry",
     "VehicleControl",

@@ -21,3 +21,14 @@ class RelativeMeasurement:
     bearing_rad: float
     range_bound_m: float
     bearing_bound_rad: float
+
+
+@dataclass(frozen=True, slots=True)
+class RelativeScan:
+    """One scan of robot ``robot``'s range-bearing sensor: every robot it saw, with one
+    stamp (each measurement's own stamp is the scan's). Cooperative localization contracts
+    the robot's box with all of them at once."""
+
+    stamp_ns: int
+    robot: str
+    seen: tuple[RelativeMeasurement, ...] = ()
