@@ -84,6 +84,9 @@ class _Robot:
     def lost_peer(self) -> bool:
         return (self.peer, False) in self.live
 
+    def peer_alive_seen(self) -> bool:
+        return (self.peer, True) in self.live
+
     def peer_back(self) -> bool:
         """The peer's token went and came back."""
         mine = [alive for r, alive in self.live if r == self.peer]
@@ -176,3 +179,44 @@ def test_a_client_listens_nowhere_and_needs_a_router():
         parse_config({"zenoh": {"mode": "client"}}, "<t>")
     cfg = parse_config({"zenoh": {"mode": "client", "connect": ["tcp/127.0.0.1:7447"]}}, "<t>")
     assert cfg.zenoh.settings().mode == "client"
+
+
+def test_the_daemon_meets_its_fleet_through_a_router():
+    from hilnav.config import parse_config
+    from hilnav.daemon import Daemon
+
+    port = free_tcp_port()
+    router = _router(port)
+    ep = f"tcp/127.0.0.1:{port}"
+    cfg = parse_config(
+        {
+            "name": "r1",
+            "fleet": ["r2"],
+            "zenoh": {"mode": "client", "connect": [ep]},
+            "log": {"enabled": False},
+            "services": {"mapping": {"enabled": False}},
+            "devices": {d: {"enabled": False} for d in ("arcos", "ir", "gyro", "gps")},
+        },
+        "<test>",
+    )
+    d = Daemon(cfg)
+    r2 = None
+    try:
+        d.start()
+        r2 = _Robot("r2", "r1", [port])
+        assert _wait(lambda: r2.peer_alive_seen())
+        cp = d.pipeline.localization.cp
+        end = time.monotonic() + 10
+        while "r2" not in cp.peers and time.monotonic() < end:
+            r2.send(time.time_ns())
+            time.sleep(0.05)
+        assert "r2" in cp.peers and "r2" in d.peers.alive
+        r2.bus.close()  # r2 leaves: its token goes through the router
+        r2 = None
+        assert _wait(lambda: "r2" not in d.peers.alive)
+        assert d.peers.dropped[-1] == ("r2", "token gone")
+    finally:
+        if r2 is not None:
+            r2.bus.close()
+        d.stop()
+        _stop(router)
