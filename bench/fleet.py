@@ -77,21 +77,25 @@ def run_fleet(
     t_go = t_first = None
     lines: list[str] = []
     deadline = t_start + 60 + 10 * duration * max(1, robots / 3)
-    while time.time() < deadline:
+    eof = False
+    while time.time() < deadline and not eof:
         r, _, _ = select.select([proc.stdout], [], [], 1.0)
         if not r:
             continue
         line = proc.stdout.readline()
         if not line:
+            eof = True
             break
         lines.append(line)
         if line.startswith("fleet:") and t_go is None:
             t_go = time.time()
         elif re.match(r"r\d+: ", line) and t_first is None:
             t_first = time.time()
-    if proc.poll() is None:
+    if not eof:
         proc.kill()
-    _, status, ru = os.wait4(proc.pid, 0)
+    _, status, ru = os.wait4(proc.pid, 0)  # its rusage includes its children's
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    proc.stdout.close()
     wall = time.time() - t_start
     res = json.loads(lines[-1]) if lines and lines[-1].startswith("{") else {}
     cpu = ru.ru_utime + ru.ru_stime

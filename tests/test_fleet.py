@@ -50,8 +50,9 @@ def test_three_robot_fleet_contains_truth_and_drops_a_killed_robot(tmp_path):
         seen.setdefault(m.topic, []).append(m.msg.stamp_ns)
     end = max(seen["/r1/pose_box"])
     assert len(seen["/r1/relative"]) > 10
-    assert max(seen["/r2/pose_box"]) >= end - 200_000_000
-    assert seen.get("/r3/pose_box") and max(seen["/r3/pose_box"]) < end - 500_000_000
+    # (r1 and r2 step in separate processes, a loaded machine may hold one back a little)
+    assert max(seen["/r2/pose_box"]) >= end - 600_000_000
+    assert seen.get("/r3/pose_box") and max(seen["/r3/pose_box"]) < end - 1_000_000_000
 
 
 def test_the_second_router_takes_over_when_the_first_is_killed(tmp_path):

@@ -9,17 +9,19 @@ deterministic for them). To add one, write a class with the members of
     register(ScenarioEntry("mine", "what it is", lambda a: MyScenario(a.robots, ...)))
 
 The entry's ``max_robots`` (None: no limit of the scenario's own) is checked by the
-command before anything starts.
+command before anything starts. Importing this module loads no scenario (``hilnav
+--help`` lists them): a builder imports its scenario when it is called.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
-from hilnav.config import RobotConfig
-from msgs import Pose2D, PoseBox, RelativeScan
+if TYPE_CHECKING:  # the command line lists the scenarios without loading them
+    from hilnav.config import RobotConfig
+    from msgs import Pose2D, PoseBox, RelativeScan
 
 
 class RobotDevices(Protocol):
