@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
         fleet.go(t0)
         time.sleep(min(2.0, kill_at / 2))
         only_routers = links_only_to_routers(used)
-        fleet.supervise([("ra", kill_at)], t0, t0 + 3 * args.duration + 60,
+        fleet.supervise([("ra", kill_at)], t0, t0 + 10 * args.duration + 60,
                         say=lambda m: print(m, flush=True))  # fmt: skip
         cpu = fleet.cpu_s()
         kill_wall = next(c.killed_at for c in fleet.routers if c.name == "ra") or t0 + kill_at

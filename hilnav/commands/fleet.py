@@ -188,7 +188,7 @@ def launch(
         fleet.go(t0)
         where = ", ".join(connect or eps)
         print(f"fleet: {len(names)} robots on {len(groups)} hosts via {where}; logs in {out}")
-        fleet.supervise(kills, t0, t0 + 3 * wall + 60.0, say=lambda m: print(m, flush=True))
+        fleet.supervise(kills, t0, t0 + 10 * wall + 60.0, say=lambda m: print(m, flush=True))
         router_cpu = {k: v for k, v in fleet.cpu_s().items() if k.startswith("router")}
         fleet.finish()
     except LaunchError as exc:

@@ -30,6 +30,7 @@ from hilnav.bus import ZenohSettings
 from hilnav.config import ConfigError, load_config
 from hilnav.fleet.robot import SimRobot
 from hilnav.fleet.scenarios import ScenarioArgs, build
+from hilnav.runtime import StartError
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
@@ -177,7 +178,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     host = Host(args)
     try:
-        host.open()
+        try:
+            host.open()
+        except StartError as exc:
+            print(f"hilnav fleet host {args.host}: {exc}", file=sys.stderr, flush=True)
+            return 2
         print(f"READY {args.host}", flush=True)
         parts = wait_line("GO", args.go_timeout)
         if parts is None or len(parts) != 2:
