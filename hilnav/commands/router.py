@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run a Zenoh router that robots connect to ([zenoh] connect)",
         description="Run a Zenoh router (Zenoh's router mode). Robots whose [zenoh] connect "
         "names it (mode client, or peer) reach each other through it; give a fleet two "
-        "routers (each connecting to the other) and list both in the robots' connect, and "
+        "routers (the second connecting to the first) and list both in the robots' connect, and "
         "the second takes over when the first goes. Multicast scouting is off; the "
         "endpoints are explicit.",
     )
