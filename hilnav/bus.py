@@ -5,7 +5,8 @@ Keys are ``hilnav/<robot>/<topic>``, payloads the JSON of
 :class:`Bus` publishes carries its own robot name as the Zenoh attachment (or that of the
 robot it speaks for: ``hilnav play`` replays a log's robots), so receivers know who sent it.
 
-One :class:`Bus` owns one Zenoh session opened from :class:`ZenohSettings`: peer mode,
+One :class:`Bus` owns one Zenoh session opened from :class:`ZenohSettings`: peer mode (or
+client mode, reaching the others through Zenoh routers: ``hilnav router``),
 explicit ``listen``/``connect`` endpoints (``tcp/127.0.0.1:PORT``), multicast scouting OFF
 unless switched on, optionally a native Zenoh JSON5 file as the base, plus Zenoh's own
 access control, TLS and user/password sections passed through untouched. Those Zenoh
@@ -55,6 +56,11 @@ def zenoh_problem(exc: BaseException) -> str:
     m = re.search(r'msg: "((?:[^"\\]|\\.)*)"', text)
     if m:
         text = m.group(1).replace('\\"', '"')
+    if "Unable to connect to any of" in text:
+        text += (
+            " (no router or robot answers there: start it first, e.g. `hilnav router`, or "
+            "fix [zenoh] connect)"
+        )
     if "Address already in use" in text:
         text += (
             " (another hilnav run, a router or another program listens there: stop it, or "
@@ -80,6 +86,8 @@ class ZenohSettings:
 
     ``config_file`` is a native Zenoh JSON5 config used as the base; the fields below are
     then applied on top (``mode``, ``listen``, ``connect`` only when set; scouting always).
+    ``mode`` is Zenoh's: ``peer`` (the default), ``client`` (talks only to the routers or
+    peers it connects to, and listens nowhere: ``listen`` is not used) or ``router``.
     ``access_control``, ``tls`` and ``usrpwd`` are Zenoh's own sections
     (``access_control``, ``transport/link/tls``, ``transport/auth/usrpwd``), passed through
     as given; ``extra`` maps any other Zenoh config path to its value.
@@ -120,7 +128,9 @@ class ZenohSettings:
 
         if self.mode and (not self.config_file or self.mode != "peer"):
             put("mode", self.mode)
-        if self.listen or not self.config_file:
+        if self.mode == "client":
+            put("listen/endpoints", [])  # a client reaches others through its routers only
+        elif self.listen or not self.config_file:
             # no listen given: listen nowhere (Zenoh's default would be every interface)
             put("listen/endpoints", list(self.listen))
         if self.connect:

@@ -29,6 +29,7 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.replay",
     "hilnav.commands.importer",
     "hilnav.commands.fleet",
+    "hilnav.commands.router",
 )
 
 

@@ -20,48 +20,26 @@ See docs/daemon.md.
 from __future__ import annotations
 
 import contextlib
-import queue
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hilnav.bus import Bus, ZenohSettings, zenoh_problem
+from hilnav.bus import Bus, ZenohSettings
 from hilnav.config import RobotConfig
 from hilnav.devices import make_drivers, with_fake_ports
 from hilnav.fakeset import FakeProcess, FakeProcessError
 from hilnav.motion import MotionGuard
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
-from hilnav.sinks import Sink, Sinks, default_log_path, open_run_log
-from hilnav.topics import DEVICE_TOPICS, PEER_TOPICS, PUBLISHED, log_topic, raw_topic
+from hilnav.runtime import RobotRuntime, RuntimeStats, StartError
+from hilnav.sinks import Sink, Sinks
+from hilnav.topics import DEVICE_TOPICS, raw_topic
 from msgs import DaemonStatus, DeviceDiagnostics, RawBytes, VelocityCommand
 
-
-class DaemonError(RuntimeError):
-    """The daemon cannot start (fakes, log directory, Zenoh): the message says why."""
-
-
-@dataclass
-class _Item:
-    topic: str
-    msg: Any
-    recv_ns: int
-    peer: str = ""  # set for another robot's message
-
-
-@dataclass
-class DaemonStats:
-    """What the service loop did (read by the bench and the tests)."""
-
-    processed: int = 0
-    published: int = 0
-    logged: int = 0  # taken by every sink (the log, the live view)
-    dropped: int = 0
-    by_topic: dict[str, int] = field(default_factory=dict)
-    faults: dict[str, int] = field(default_factory=dict)
+DaemonError = StartError  # the daemon cannot start (fakes, log directory, Zenoh): says why
+DaemonStats = RuntimeStats
 
 
 class Daemon:
@@ -78,35 +56,58 @@ class Daemon:
     ) -> None:
         self.cfg = cfg
         self.robot = cfg.name
-        self.zenoh = zenoh or cfg.zenoh.settings()
-        self.log_path = Path(log_path) if log_path else None
-        self.stats = DaemonStats()
-        self.errors: list[str] = []
-        self._fault_kinds: set[tuple[str, str]] = set()
-        self.pipeline = Pipeline(cfg, on_mapping=self._from_mapping, on_fault=self._fault)
+        self.runtime = RobotRuntime(cfg, zenoh=zenoh, sinks=sinks, queue_size=queue_size)
+        self.zenoh = self.runtime.zenoh
+        self._log_path = Path(log_path) if log_path else None
         self.motion = MotionGuard(cfg.cmd_vel.limits(), self._on_motion_stop, self._fault)
-        self.peers = PeerTable(cfg.services.localization.peer_timeout_s)
-        self._q: queue.Queue[_Item] = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self.drivers: dict[str, Any] = {}
-        self.bus: Bus | None = None
-        self.log: Any = None
-        self.sinks = Sinks(sinks or {}, self._fault)  # + "log" when the log opens
         self.fake: FakeProcess | None = None
         self._loop_thread: threading.Thread | None = None
         self._stopped = False
 
+    # the runtime's parts, as the daemon's
+    @property
+    def stats(self) -> RuntimeStats:
+        return self.runtime.stats
+
+    @property
+    def errors(self) -> list[str]:
+        return self.runtime.errors
+
+    @property
+    def pipeline(self) -> Pipeline:
+        return self.runtime.pipeline
+
+    @property
+    def peers(self) -> PeerTable:
+        return self.runtime.peers
+
+    @property
+    def bus(self) -> Bus | None:
+        return self.runtime.bus
+
+    @property
+    def sinks(self) -> Sinks:
+        return self.runtime.sinks
+
+    @property
+    def log(self) -> Any:
+        return self.runtime.log
+
+    @property
+    def log_path(self) -> Path | None:
+        return self.runtime.log_path or self._log_path
+
     # -- lifecycle ------------------------------------------------------------------------------
     def start(self) -> None:
-        try:
-            self.bus = Bus(self.robot, self.zenoh, fleet=self.cfg.fleet)
-        except Exception as exc:  # zenoh.ZError and friends
-            raise DaemonError(f"cannot open the Zenoh session: {zenoh_problem(exc)}") from None
+        rt = self.runtime
+        rt.open_bus()
         try:
             if self.cfg.simulated:
                 self._start_fakes()
-            self._open_log()
+            rt.open_log(self._log_path, simulated=self.fake is not None)
             self._declare()
             self.drivers = make_drivers(self.cfg, self._raw_hook)
             self.motion.driver = self.drivers.get("arcos")
@@ -114,7 +115,8 @@ class Daemon:
                 self._thread(self._reader, f"dev-{name}", name, drv)
             self._loop_thread = self._thread(self._service_loop, "services")
             self.motion.start()
-            self.bus.declare_alive()
+            assert rt.bus is not None
+            rt.bus.declare_alive()
         except BaseException:
             self.stop()
             raise
@@ -126,42 +128,19 @@ class Daemon:
         return t
 
     def _start_fakes(self) -> None:
-        ep = self.zenoh.listen[0] if self.zenoh.listen else None
-        if ep is not None:
-            host_port = ep.split("/", 1)[1]
-            if host_port.startswith(("0.0.0.0", "[::]")):
-                ep = "tcp/127.0.0.1:" + host_port.rsplit(":", 1)[1]
+        ep = _fake_endpoint(self.zenoh)
         try:
             self.fake = FakeProcess(self.cfg, ep)
         except FakeProcessError as exc:
             raise DaemonError(str(exc)) from None
-        self.cfg = with_fake_ports(self.cfg, self.fake.ports)
+        self.cfg = self.runtime.cfg = with_fake_ports(self.cfg, self.fake.ports)
 
     def _declare(self) -> None:
-        assert self.bus is not None
-        self.bus.subscribe(self.robot, "cmd_vel", self._on_cmd_vel)
-        self.bus.subscribe(self.robot, "truth", lambda r, m: self._put("truth", m))
-        if self.cfg.services.localization.enabled:
-            for topic in PEER_TOPICS:
-                self.bus.subscribe("*", topic, lambda r, m, t=topic: self._on_peer(r, t, m))
-            self.bus.on_liveliness(self._on_liveliness)
-        latest = self.pipeline.latest
-        for name in ("pose", "map", "info"):
-            self.bus.queryable(name, lambda n=name: latest.get(n))
-
-    def _open_log(self) -> None:
-        if not self.cfg.log.enabled:
-            return
-        self.log_path = self.log_path or default_log_path(self.cfg)
-        sim, services = self.fake is not None, self.pipeline.services
-        try:
-            self.log = open_run_log(self.cfg, self.log_path, simulated=sim, services=services)
-        except OSError as exc:
-            raise DaemonError(
-                f"cannot write the log {self.log_path}: {exc.strerror or exc}; set [log] dir "
-                "to a writable directory"
-            ) from None
-        self.sinks.add("log", self.log)
+        bus = self.runtime.bus
+        assert bus is not None
+        bus.subscribe(self.robot, "cmd_vel", self._on_cmd_vel)
+        bus.subscribe(self.robot, "truth", lambda r, m: self.runtime.put("truth", m))
+        self.runtime.declare_peers()
 
     def wait(self, timeout_s: float | None = None) -> bool:
         """Block until :meth:`request_stop` (or the timeout); True if asked to stop."""
@@ -177,18 +156,15 @@ class Daemon:
             return
         self._stopped = True
         self._stop.set()
+        self.runtime.closing.set()
         self.motion.halt()
         for t in self._threads:
             t.join(timeout=5.0 if t is self._loop_thread else 3.0)
-        self._drain()
-        self.pipeline.close()
+        self.runtime.drain(publish=False)
         for drv in self.drivers.values():
             with contextlib.suppress(Exception):
                 drv.close()
-        if self.bus is not None:
-            with contextlib.suppress(Exception):
-                self.bus.close()
-        self.sinks.close()
+        self.runtime.close()
         if self.fake is not None:
             self.fake.stop()
 
@@ -200,11 +176,8 @@ class Daemon:
         self.stop()
 
     # -- producers (device threads, Zenoh threads, the watchdog) ----------------------------------
-    def _put(self, topic: str, msg: Any, peer: str = "") -> None:
-        try:
-            self._q.put_nowait(_Item(topic, msg, time.time_ns(), peer))
-        except queue.Full:
-            self.stats.dropped += 1
+    def _put(self, topic: str, msg: Any) -> None:
+        self.runtime.put(topic, msg)
 
     def _raw_hook(self, device: str):
         if not self.cfg.log.raw or not self.cfg.log.enabled:
@@ -247,104 +220,23 @@ class Daemon:
             self._fault("services", RuntimeError("service loop stalled: robot stopped"))
         self._put("cmd_vel", VelocityCommand(time.time_ns(), source=f"{self.robot}/{reason}"))
 
-    def _on_peer(self, robot: str, topic: str, msg: Any) -> None:
-        if robot != self.robot:
-            self._put(topic, msg, peer=robot)
-
-    def _on_liveliness(self, robot: str, alive: bool) -> None:
-        if robot != self.robot:
-            self._put("", alive, peer=robot)
-
-    def _from_mapping(self, topic: str, msg: Any, recv_ns: Any) -> None:
-        self._emit(topic, msg, int(recv_ns or time.time_ns()), publish=not self._stop.is_set())
-
     def _fault(self, where: str, exc: BaseException) -> None:
-        """Count a fault, keep it for diagnostics, print its first occurrence per kind."""
-        self.stats.faults[where] = self.stats.faults.get(where, 0) + 1
-        text = f"{where}: {exc!r}"
-        self.errors.append(text)
-        del self.errors[:-100]
-        kind = (where, type(exc).__name__)
-        if kind not in self._fault_kinds:
-            self._fault_kinds.add(kind)
-            print(f"hilnav run: {text} (counted; the loop goes on)", file=sys.stderr, flush=True)
+        self.runtime.fault(where, exc)
 
     # -- the service loop --------------------------------------------------------------------------
     def _service_loop(self) -> None:
-        period = self.cfg.diagnostics_period_s
+        rt, period = self.runtime, self.cfg.diagnostics_period_s
         next_diag = time.monotonic() + period
         while not self._stop.is_set():
             self.motion.heartbeat()
-            try:
-                item = self._q.get(timeout=0.05)
-            except queue.Empty:
-                item = None
+            item = rt.next(0.05)
             if item is not None:
-                self._handle_safely(item)
+                rt.handle(item)
             now = time.monotonic()
-            for robot in self.peers.expire(now):
-                self._guard("services", self.pipeline.drop_peer, robot)
+            rt.expire_peers(now)
             if now >= next_diag:
                 next_diag = now + period
-                self._guard("diagnostics", self._diagnostics)
-
-    def _guard(self, where: str, fn: Any, *args: Any) -> None:
-        try:
-            fn(*args)
-        except Exception as exc:
-            self._fault(where, exc)
-
-    def _handle_safely(self, item: _Item, publish: bool = True) -> None:
-        self._guard("services", self._handle, item, publish)
-
-    def _drain(self) -> None:
-        while True:
-            try:
-                item = self._q.get_nowait()
-            except queue.Empty:
-                return
-            self._handle_safely(item, publish=False)
-
-    def _handle(self, item: _Item, publish: bool = True) -> None:
-        topic, msg = item.topic, item.msg
-        self.stats.processed += 1
-        self.stats.by_topic[topic] = self.stats.by_topic.get(topic, 0) + 1
-        if item.peer:
-            self._handle_peer(item)
-            return
-        if topic == "info":
-            self.pipeline.latest["info"] = msg
-        self._emit(topic, msg, item.recv_ns, publish)
-        for t, m in self.pipeline.feed(topic, msg, item.recv_ns):
-            self._emit(t, m, item.recv_ns, publish)
-
-    def _handle_peer(self, item: _Item) -> None:
-        now = time.monotonic()
-        if not item.topic:  # a liveliness change
-            if self.peers.token(item.peer, bool(item.msg), now):
-                self.pipeline.drop_peer(item.peer)
-            return
-        self.peers.seen(item.peer, now)
-        self._log(log_topic(item.peer, item.topic), item.msg, item.recv_ns)
-        for t, m in self.pipeline.feed_other(item.peer, item.topic, item.msg):
-            self._emit(t, m, item.recv_ns)
-
-    def _emit(self, topic: str, msg: Any, log_ns: int, publish: bool = True) -> None:
-        if publish and topic in PUBLISHED and self.bus is not None:
-            try:
-                self.bus.publish(topic, msg)
-                self.stats.published += 1
-            except Exception as exc:
-                self._fault("bus", exc)
-        self._log(log_topic(self.robot, topic), msg, log_ns)
-
-    def _log(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
-        """To every sink (log, live view). Log time = when the daemon received the message
-        (for a service output: when it received the input that caused it, as ``hilnav
-        replay`` does); publish time = the message's own stamp (for device data the time
-        its bytes were read)."""
-        if self.sinks and self.sinks.write(mcap_topic, msg, log_ns):
-            self.stats.logged += 1
+                rt.guard("diagnostics", self._diagnostics)
 
     def _diagnostics(self) -> None:
         stamp = time.time_ns()
@@ -353,28 +245,29 @@ class Daemon:
                 d = drv.diagnostics(stamp)
             except Exception as exc:
                 d = DeviceDiagnostics(stamp, getattr(drv, "device", "?"), last_error=repr(exc))
-            self._emit("diagnostics", d, stamp)
-        self._emit("status", self.status(stamp), stamp)
+            self.runtime.emit("diagnostics", d, stamp)
+        self.runtime.emit("status", self.status(stamp), stamp)
 
     def status(self, stamp_ns: int) -> DaemonStatus:
         """The daemon's own health counters (msgs.DaemonStatus)."""
-        b = self.bus.stats if self.bus is not None else None
         g = self.motion.gate
-        worker = self.pipeline.worker
-        return DaemonStatus(
+        return self.runtime.status(
             stamp_ns,
-            self.robot,
-            bus_received=b.received if b else 0,
-            bus_malformed=b.malformed if b else 0,
-            bus_foreign=b.foreign if b else 0,
-            bus_callback_errors=b.callback_errors if b else 0,
-            bus_last_problem=b.last_problem if b else "",
-            queue_processed=self.stats.processed,
-            queue_dropped=self.stats.dropped + (worker.dropped if worker else 0),
-            faults=dict(self.stats.faults),
-            last_fault=self.errors[-1] if self.errors else "",
             cmd_received=g.received,
             cmd_rejected=g.rejected,
             cmd_timeouts=g.timeouts,
             cmd_stalls=g.stalls,
         )
+
+
+def _fake_endpoint(z: ZenohSettings) -> str | None:
+    """Where the ``hilnav fake`` child connects to publish the truth: the daemon's first
+    listen endpoint (0.0.0.0 / [::] made loopback), or in client mode its first router."""
+    if z.mode == "client":
+        return z.connect[0] if z.connect else None
+    ep = z.listen[0] if z.listen else None
+    if ep is not None:
+        host_port = ep.split("/", 1)[1]
+        if host_port.startswith(("0.0.0.0", "[::]")):
+            ep = "tcp/127.0.0.1:" + host_port.rsplit(":", 1)[1]
+    return ep

@@ -15,10 +15,13 @@ and no threads, so the same input gives the same output (replay relies on it).
   intervals. An odometry message's estimate may come out at the next gyro sample (the
   message waits for the gyro to catch up).
 - :class:`LocalizationAdapter`: localization.cp.CPLocalizer, guaranteed boxes (ekf-vs-cp
-  eq. 5) from bounded odometry, gyro and GPS errors, plus the other robots' boxes ->
+  eq. 5) from bounded odometry, gyro and GPS errors, plus the other robots' boxes and
+  this robot's range-bearing scans of them (``relative``, contracted all at once) ->
   ``pose_box``, at most every ``publish_every_s`` of message time. The gyro is given to
   it once per odometry step (its latest sample), not at 100 Hz: each sample re-solves
-  the window.
+  the window. A GPS fix goes to the nearer of the latest state and the next one (the
+  next odometry step is expected one odometry interval after the latest): a fix nearer
+  the next is held and given right after that step, so its box comes out with the step.
 - :class:`MappingAdapter`: IR occupancy grid (eq. 5-6) with or without sample-based data
   association (eq. 7-8), fed the latest HeadingEstimate and each IrScan -> ``map`` at
   most every ``publish_every_s`` of message time, and ``association`` reports.
@@ -48,6 +51,7 @@ from msgs import (
     IrScan,
     Pose2D,
     PoseBox,
+    RelativeScan,
     RobotOdometry,
     wrap_angle,
 )
@@ -145,9 +149,13 @@ class LocalizationAdapter:
         )
         self.cp = CPLocalizer(config, robot=cfg.name, initial=box)
         self.period_ns = int(lc.publish_every_s * 1e9)
+        self.robot = cfg.name
         self._gyro: GyroSample | None = None
         self._gyro0: float | None = None
         self._last_ns: int | None = None
+        self._odom_ns: int | None = None  # stamp of the latest odometry step
+        self._odom_dt_ns = 0  # interval between the last two odometry steps
+        self._gps: GpsFix | None = None  # a fix held for the next step
 
     def feed(self, topic: str, msg: Any) -> Outputs:
         box = None
@@ -158,23 +166,46 @@ class LocalizationAdapter:
                 self._gyro = msg
             return []
         if isinstance(msg, RobotOdometry):
-            box = self.cp.feed_odometry(msg)
-            g = self._gyro
-            if g is not None and self.cp.started and self._gyro0 is not None:
-                # map heading = initial yaw + the gyro's turn since its first sample
-                angle = self.yaw0 + (g.angle_rad - self._gyro0)
-                box = self.cp.feed_gyro(
-                    GyroSample(g.stamp_ns, g.rate_radps, angle, g.angle_wrapped_rad)
-                )
-                self._gyro = None
+            box = self._odometry(msg)
         elif isinstance(msg, GpsFix):
-            box = self.cp.feed_gps(msg)
+            box = self._fix(msg)
+        elif isinstance(msg, RelativeScan) and msg.robot == self.robot and msg.seen:
+            box = self.cp.feed_relatives(list(msg.seen))
         if box is None:
             return []
         if self._last_ns is not None and box.stamp_ns - self._last_ns < self.period_ns:
             return []
         self._last_ns = box.stamp_ns
         return [("pose_box", box)]
+
+    def _odometry(self, msg: RobotOdometry) -> PoseBox | None:
+        box = self.cp.feed_odometry(msg)
+        if box is not None and self._odom_ns is not None:
+            self._odom_dt_ns = msg.stamp_ns - self._odom_ns
+        if box is not None:
+            self._odom_ns = msg.stamp_ns
+        g = self._gyro
+        if g is not None and self.cp.started and self._gyro0 is not None:
+            # map heading = initial yaw + the gyro's turn since its first sample
+            angle = self.yaw0 + (g.angle_rad - self._gyro0)
+            box = self.cp.feed_gyro(
+                GyroSample(g.stamp_ns, g.rate_radps, angle, g.angle_wrapped_rad)
+            )
+            self._gyro = None
+        held = self._gps
+        if held is not None and held.stamp_ns <= msg.stamp_ns:
+            self._gps = None
+            box = self.cp.feed_gps(held) or box
+        return box
+
+    def _fix(self, fix: GpsFix) -> PoseBox | None:
+        if self._gps is not None:  # the step it waited for did not come: use it now
+            held, self._gps = self._gps, None
+            self.cp.feed_gps(held)
+        if self._odom_ns is not None and 2 * (fix.stamp_ns - self._odom_ns) > self._odom_dt_ns > 0:
+            self._gps = fix  # nearer the next odometry step than the latest
+            return None
+        return self.cp.feed_gps(fix)
 
     def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
         """A peer's box (a box that claims another robot than its sender is ignored)."""

@@ -38,7 +38,7 @@ from msgs import (
     PoseEstimate,
     RangeBearing,
     RawBytes,
-    RelativeMeasurement,
+    RelativeScan,
     RobotInfo,
     RobotOdometry,
     VehicleControl,
@@ -91,7 +91,8 @@ _TABLE = (
     Topic("status", DaemonStatus, "daemon", "the daemon's loop, bus and motion gate, 1 Hz",
           published=True),
     Topic("truth", GroundTruth, "sim", "the simulated world's true pose"),
-    Topic("relative", RelativeMeasurement, "external", "range-bearing to another robot"),
+    Topic("relative", RelativeScan, "external", "one range-bearing scan of the other robots "
+          "(cooperative CP)", service_input=True),
     Topic("control", VehicleControl, "external", "car-like vehicle control (speed, steering)",
           service_input=True),
     Topic("landmark_scan", LandmarkScan, "external", "range-bearing landmark detections",

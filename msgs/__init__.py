@@ -12,7 +12,7 @@ from msgs.geometry import Interval, Pose2D
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
 from msgs.mapping import AssociationReport, OccupancyGridMsg
-from msgs.relative import RangeBearing, RelativeMeasurement
+from msgs.relative import RangeBearing, RelativeMeasurement, RelativeScan
 from msgs.robot import RobotInfo, RobotOdometry, VelocityCommand, VelocityOdometry
 from msgs.sensors import GpsFix, GpsSatellite, GpsSky, GyroSample, IrScan, IrStatus
 from numerics.angles import wrap_angle
@@ -40,6 +40,7 @@ __all__ = [
     "RangeBearing",
     "RawBytes",
     "RelativeMeasurement",
+    "RelativeScan",
     "RobotInfo",
     "RobotOdometry",
     "VehicleControl",

@@ -46,3 +46,14 @@ class RangeBearing:
     range_m: float
     bearing_rad: float
     subject: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class RelativeScan:
+    """One scan of robot ``robot``'s range-bearing sensor: every robot it saw, with one
+    stamp (each measurement's own stamp is the scan's). Cooperative localization contracts
+    the robot's box with all of them at once."""
+
+    stamp_ns: int
+    robot: str
+    seen: tuple[RelativeMeasurement, ...] = ()

@@ -171,3 +171,74 @@ def test_bursts_after_a_stall_keep_gyro_and_encoder_intervals_aligned():
         _, out = run(cfg, stalled(gyro_first))
         last = [m for t, m in out if t == "heading"][-1]
         assert abs(wrap_angle(last.theta_rad - ref.theta_rad)) < math.radians(0.5), gyro_first
+
+
+def _cp_only(**loc) -> Pipeline:
+    from hilnav.config import parse_config
+
+    cfg = parse_config(
+        {
+            "name": "r1",
+            "fleet": ["r2"],
+            "initial_pose": [0.0, 0.0, 0.0],
+            "services": {
+                "heading": {"enabled": False},
+                "pose": {"enabled": False},
+                "mapping": {"enabled": False},
+                "localization": {"publish_every_s": 0.1, "gps_bound_m": 2.0, **loc},
+            },
+        },
+        "<test>",
+    )
+    return Pipeline(cfg)
+
+
+def _odo(i: int, x: float) -> RobotOdometry:
+    return RobotOdometry(i * 100_000_000, Pose2D(x, 0.0, 0.0), 0.5, 0.5, 0.5, 0.0, 12.0, True, True)
+
+
+def test_a_relative_scan_contracts_the_box_with_the_peers_boxes():
+    from msgs import Interval, PoseBox, RelativeMeasurement, RelativeScan
+
+    p = _cp_only(initial_bound_m=1.0)
+    for i in range(3):
+        p.feed("odometry", _odo(i, 0.05 * i))
+    before = p.localization.cp.box()
+    st = 2 * 100_000_000
+    # r2 known within 1 cm at (0.1, 3.0); r1 is really at (0.1, 0.0): r2 at 3 m, bearing 90 deg
+    p.feed_other("r2", "pose_box", PoseBox(st, "r2", Interval(0.09, 0.11), Interval(2.99, 3.01), Interval(0, 0.01)))  # fmt: skip
+    seen = (RelativeMeasurement(st, "r1", "r2", 3.0, math.pi / 2, 0.02, 0.01),)
+    assert p.feed("relative", RelativeScan(st, "r2", seen)) == []  # another robot's scan
+    p.feed("relative", RelativeScan(st, "r1", seen))
+    after = p.localization.cp.box()
+    assert after.x.width < before.x.width and after.y.width < before.y.width
+    assert after.x.lo <= 0.1 <= after.x.hi and after.y.lo <= 0.0 <= after.y.hi
+    # no box of the peer: nothing to contract with, counted
+    p.localization.drop_peer("r2")
+    p.feed("relative", RelativeScan(st, "r1", seen))
+    assert p.localization.cp.skipped.get("relative_no_peer_box") == 1
+
+
+def test_a_gps_fix_nearer_the_next_odometry_step_waits_for_it():
+    from msgs import GpsFix
+
+    def fix(ns: int, e: float) -> GpsFix:
+        return GpsFix(ns, mode=3, quality=1, east_m=e, north_m=0.0)
+
+    held, direct = _cp_only(), _cp_only()
+    for p in (held, direct):
+        for i in range(3):
+            p.feed("odometry", _odo(i, 0.05 * i))
+    # a fix stamped at the next step: held (no box yet), given with that step's box
+    assert held.feed("gps", fix(300_000_000, 0.15)) == []
+    out = held.feed("odometry", _odo(3, 0.15))
+    # the same as a fix given right after the step (same stamp: no widening)
+    direct.feed("odometry", _odo(3, 0.15))
+    direct.feed("gps", fix(300_000_000, 0.15))  # its box is not published: same stamp
+    ((t, box),) = out
+    assert t == "pose_box" and box.stamp_ns == 300_000_000
+    assert box == direct.localization.cp.box()
+    # a fix nearer the latest step is used at once
+    held.feed("odometry", _odo(4, 0.2))
+    held.feed("gps", fix(410_000_000, 0.2))
+    assert held.localization._gps is None

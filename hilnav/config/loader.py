@@ -161,6 +161,11 @@ def _cross_checks(cfg: RobotConfig, src: str) -> None:
             f"{src}: zenoh.config_file = {cfg.zenoh.config_file!r}: no such file; give the "
             "path of a Zenoh JSON5 config or remove the key"
         )
+    if cfg.zenoh.mode == "client" and not cfg.zenoh.connect and not cfg.zenoh.config_file:
+        raise ConfigError(
+            f"{src}: zenoh.mode = 'client' needs zenoh.connect: the routers to reach the "
+            'fleet through, e.g. connect = ["tcp/127.0.0.1:7447"] (see hilnav router)'
+        )
     eps = [(f"zenoh.listen[{i}]", e) for i, e in enumerate(cfg.zenoh.listen)]
     eps += [(f"zenoh.connect[{i}]", e) for i, e in enumerate(cfg.zenoh.connect)]
     for where, ep in eps:

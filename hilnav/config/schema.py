@@ -228,7 +228,9 @@ class Services:
 # -- the rest ------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class ZenohTable:
-    """The [zenoh] table; see :class:`hilnav.bus.ZenohSettings` for the meaning."""
+    """The [zenoh] table; see :class:`hilnav.bus.ZenohSettings` for the meaning. A fleet
+    across hosts meets through Zenoh routers (``hilnav router``): mode "client" and the
+    routers in ``connect`` (two routers: the second takes over when the first goes)."""
 
     mode: str = field(default="peer", metadata=_choice("peer", "client", "router"))
     listen: tuple[str, ...] = ("tcp/127.0.0.1:7447",)

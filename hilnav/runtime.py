@@ -1,0 +1,309 @@
+"""One robot's runtime: its services, its peers, the bus and the log, fed by one queue.
+
+The daemon (``hilnav run``) and every robot of ``hilnav fleet`` are a
+:class:`RobotRuntime`; only what feeds them differs (the daemon: one reader thread per
+device and its service loop thread; a fleet robot: the scenario's simulated devices, stepped
+by :mod:`hilnav.fleet.host`). The runtime owns:
+
+- the :class:`hilnav.pipeline.Pipeline` of the robot's config (its mapping worker, if
+  any, hands its outputs back here);
+- ONE queue: :meth:`put` from any thread (device readers, Zenoh's callbacks), taken in
+  arrival order by one consumer (:meth:`next` + :meth:`handle`, or :meth:`drain`);
+- the :class:`hilnav.bus.Bus` (``[zenoh]``), the fleet's pose boxes and liveliness
+  tokens (:meth:`declare_peers`) and the queryables ``pose``, ``map``, ``info``;
+- the :class:`hilnav.peers.PeerTable` (a peer is dropped when its token goes or its
+  boxes stop for ``peer_timeout_s``; every admission and drop is kept in
+  :attr:`peer_events` with the wall time it arrived);
+- the sinks (:mod:`hilnav.sinks`: the MCAP log, the live view), each message encoded once;
+- the fault counters: an exception while handling one message is counted per place,
+  kept for ``status`` and printed once per kind, and the runtime goes on.
+
+A device message is logged, published when :data:`hilnav.topics.PUBLISHED` says so, and
+fed to the pipeline, whose outputs are published and logged the same way. Log time is
+when the message was put on the queue (for a service output: when its input was).
+"""
+
+from __future__ import annotations
+
+import queue
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hilnav.bus import Bus, ZenohSettings, zenoh_problem
+from hilnav.config import RobotConfig
+from hilnav.peers import PeerTable
+from hilnav.pipeline import Pipeline
+from hilnav.sinks import Sink, Sinks, default_log_path, open_run_log
+from hilnav.topics import PEER_TOPICS, PUBLISHED, log_topic
+from msgs import DaemonStatus
+
+
+class StartError(RuntimeError):
+    """The runtime cannot start (Zenoh, the log directory): the message says why."""
+
+
+@dataclass
+class Item:
+    """One queued message: ``peer`` is set for another robot's (its topic "" for a
+    liveliness change, ``msg`` then True/False)."""
+
+    topic: str
+    msg: Any
+    recv_ns: int
+    peer: str = ""
+
+
+@dataclass
+class RuntimeStats:
+    """What the runtime did (read by the bench and the tests)."""
+
+    processed: int = 0
+    published: int = 0
+    logged: int = 0  # taken by every sink (the log, the live view)
+    dropped: int = 0
+    by_topic: dict[str, int] = field(default_factory=dict)
+    faults: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PeerEvent:
+    """A peer admitted or dropped, at the wall time its cause arrived."""
+
+    wall_ns: int
+    robot: str
+    present: bool
+    why: str
+
+
+class RobotRuntime:
+    """One robot's services, peers, bus and sinks behind one queue (module docstring)."""
+
+    def __init__(
+        self,
+        cfg: RobotConfig,
+        *,
+        zenoh: ZenohSettings | None = None,
+        sinks: dict[str, Sink] | None = None,
+        queue_size: int = 20000,
+        prog: str = "hilnav run",
+        wake: threading.Event | None = None,
+    ) -> None:
+        self.cfg = cfg
+        self.robot = cfg.name
+        self.zenoh = zenoh or cfg.zenoh.settings()
+        self.prog = prog
+        self.wake = wake  # set on every put (a consumer serving several runtimes waits on it)
+        self.stats = RuntimeStats()
+        self.errors: list[str] = []
+        self._fault_kinds: set[tuple[str, str]] = set()
+        self.pipeline = Pipeline(cfg, on_mapping=self._from_mapping, on_fault=self.fault)
+        self.peers = PeerTable(cfg.services.localization.peer_timeout_s)
+        self.peer_events: list[PeerEvent] = []
+        self._q: queue.Queue[Item] = queue.Queue(maxsize=queue_size)
+        self.bus: Bus | None = None
+        self.log: Any = None
+        self.log_path: Path | None = None
+        self.sinks = Sinks(sinks or {}, self.fault)  # + "log" when the log opens
+        self.closing = threading.Event()  # set: outputs are logged, no longer published
+        self._closed = False
+
+    # -- opening ------------------------------------------------------------------------------
+    def open_bus(self) -> Bus:
+        try:
+            self.bus = Bus(self.robot, self.zenoh, fleet=self.cfg.fleet)
+        except Exception as exc:  # zenoh.ZError and friends
+            raise StartError(f"cannot open the Zenoh session: {zenoh_problem(exc)}") from None
+        return self.bus
+
+    def open_log(
+        self, path: str | Path | None, *, simulated: bool, metadata: dict[str, str] | None = None
+    ) -> None:
+        """The MCAP log at ``path`` (default: ``[log] dir/<robot>-<UTC>.mcap``) as the
+        sink "log"; nothing when ``[log] enabled`` is false."""
+        if not self.cfg.log.enabled:
+            return
+        self.log_path = Path(path) if path else default_log_path(self.cfg)
+        try:
+            self.log = open_run_log(
+                self.cfg, self.log_path, simulated=simulated, services=self.pipeline.services
+            )
+        except OSError as exc:
+            raise StartError(
+                f"cannot write the log {self.log_path}: {exc.strerror or exc}; set [log] dir "
+                "to a writable directory"
+            ) from None
+        if metadata:
+            self.log.add_metadata("scenario", metadata)
+        self.sinks.add("log", self.log)
+
+    def declare_peers(self) -> None:
+        """The fleet's pose boxes and liveliness (when localization runs) onto the queue,
+        and the queryables ``pose``, ``map``, ``info``."""
+        assert self.bus is not None
+        if self.cfg.services.localization.enabled:
+            for topic in PEER_TOPICS:
+                self.bus.subscribe("*", topic, lambda r, m, t=topic: self._on_peer(r, t, m))
+            self.bus.on_liveliness(self._on_liveliness)
+        latest = self.pipeline.latest
+        for name in ("pose", "map", "info"):
+            self.bus.queryable(name, lambda n=name: latest.get(n))
+
+    def close(self) -> None:
+        """Let the mapping worker finish (its outputs logged), close the bus and sinks."""
+        if self._closed:
+            return
+        self._closed = True
+        self.closing.set()
+        self.pipeline.close()
+        if self.bus is not None:
+            try:
+                self.bus.close()
+            except Exception as exc:
+                self.fault("bus", exc)
+        self.sinks.close()
+
+    # -- producers (any thread) -------------------------------------------------------------------
+    def put(self, topic: str, msg: Any, peer: str = "", recv_ns: int | None = None) -> None:
+        """Queue a message (counted as dropped when the queue is full)."""
+        try:
+            self._q.put_nowait(Item(topic, msg, recv_ns or time.time_ns(), peer))
+        except queue.Full:
+            self.stats.dropped += 1
+        if self.wake is not None:
+            self.wake.set()
+
+    def _on_peer(self, robot: str, topic: str, msg: Any) -> None:
+        if robot != self.robot:
+            self.put(topic, msg, peer=robot)
+
+    def _on_liveliness(self, robot: str, alive: bool) -> None:
+        if robot != self.robot:
+            self.put("", alive, peer=robot)
+
+    def _from_mapping(self, topic: str, msg: Any, recv_ns: Any) -> None:
+        self.emit(topic, msg, int(recv_ns or time.time_ns()), publish=not self.closing.is_set())
+
+    def fault(self, where: str, exc: BaseException) -> None:
+        """Count a fault, keep it for ``status``, print its first occurrence per kind."""
+        self.stats.faults[where] = self.stats.faults.get(where, 0) + 1
+        text = f"{where}: {exc!r}"
+        self.errors.append(text)
+        del self.errors[:-100]
+        kind = (where, type(exc).__name__)
+        if kind not in self._fault_kinds:
+            self._fault_kinds.add(kind)
+            print(f"{self.prog}: {text} (counted; the loop goes on)", file=sys.stderr, flush=True)
+
+    # -- the consumer (one thread) ------------------------------------------------------------------
+    def next(self, timeout_s: float) -> Item | None:
+        """The next queued item, or None after ``timeout_s``."""
+        try:
+            return self._q.get(timeout=timeout_s)
+        except queue.Empty:
+            return None
+
+    def drain(self, publish: bool = True) -> int:
+        """Handle everything queued now; how many items."""
+        n = 0
+        while True:
+            try:
+                item = self._q.get_nowait()
+            except queue.Empty:
+                return n
+            self.handle(item, publish)
+            n += 1
+
+    def guard(self, where: str, fn: Any, *args: Any) -> None:
+        """``fn(*args)``, an exception counted under ``where``."""
+        try:
+            fn(*args)
+        except Exception as exc:
+            self.fault(where, exc)
+
+    def handle(self, item: Item, publish: bool = True) -> None:
+        """One item through the services, the bus and the sinks (faults counted)."""
+        self.guard("services", self._handle, item, publish)
+
+    def expire_peers(self, now: float | None = None) -> None:
+        """Drop the peers silent for longer than ``peer_timeout_s``."""
+        now = time.monotonic() if now is None else now
+        gone = self.peers.expire(now)
+        for robot, (_, why) in zip(
+            gone, self.peers.dropped[len(self.peers.dropped) - len(gone) :], strict=True
+        ):
+            self._peer_event(time.time_ns(), robot, False, why)
+            self.guard("services", self.pipeline.drop_peer, robot)
+
+    def _handle(self, item: Item, publish: bool) -> None:
+        topic, msg = item.topic, item.msg
+        self.stats.processed += 1
+        self.stats.by_topic[topic] = self.stats.by_topic.get(topic, 0) + 1
+        if item.peer:
+            self._handle_peer(item)
+            return
+        if topic == "info":
+            self.pipeline.latest["info"] = msg
+        self.emit(topic, msg, item.recv_ns, publish)
+        for t, m in self.pipeline.feed(topic, msg, item.recv_ns):
+            self.emit(t, m, item.recv_ns, publish)
+
+    def _handle_peer(self, item: Item) -> None:
+        now = time.monotonic()
+        if not item.topic:  # a liveliness change
+            was = item.peer in self.peers.last_seen
+            if self.peers.token(item.peer, bool(item.msg), now):
+                self._peer_event(item.recv_ns, item.peer, False, "token gone")
+                self.pipeline.drop_peer(item.peer)
+            elif item.msg and not was:
+                self._peer_event(item.recv_ns, item.peer, True, "token")
+            return
+        if self.peers.seen(item.peer, now):
+            self._peer_event(item.recv_ns, item.peer, True, "data")
+        self.log_msg(log_topic(item.peer, item.topic), item.msg, item.recv_ns)
+        for t, m in self.pipeline.feed_other(item.peer, item.topic, item.msg):
+            self.emit(t, m, item.recv_ns)
+
+    def _peer_event(self, wall_ns: int, robot: str, present: bool, why: str) -> None:
+        self.peer_events.append(PeerEvent(wall_ns, robot, present, why))
+        del self.peer_events[:-10000]
+
+    def emit(self, topic: str, msg: Any, log_ns: int, publish: bool = True) -> None:
+        """Publish (if the topics table says so) and log one of this robot's messages."""
+        if publish and topic in PUBLISHED and self.bus is not None:
+            try:
+                self.bus.publish(topic, msg)
+                self.stats.published += 1
+            except Exception as exc:
+                self.fault("bus", exc)
+        self.log_msg(log_topic(self.robot, topic), msg, log_ns)
+
+    def log_msg(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
+        """To every sink (log, live view). Log time = when the message was queued (for a
+        service output: when its input was, as ``hilnav replay`` does); publish time = the
+        message's own stamp (for device data the time its bytes were read)."""
+        if self.sinks and self.sinks.write(mcap_topic, msg, log_ns):
+            self.stats.logged += 1
+
+    def status(self, stamp_ns: int, **more: Any) -> DaemonStatus:
+        """The runtime's health counters (msgs.DaemonStatus); ``more`` adds fields (the
+        daemon's motion gate)."""
+        b = self.bus.stats if self.bus is not None else None
+        worker = self.pipeline.worker
+        return DaemonStatus(
+            stamp_ns,
+            self.robot,
+            bus_received=b.received if b else 0,
+            bus_malformed=b.malformed if b else 0,
+            bus_foreign=b.foreign if b else 0,
+            bus_callback_errors=b.callback_errors if b else 0,
+            bus_last_problem=b.last_problem if b else "",
+            queue_processed=self.stats.processed,
+            queue_dropped=self.stats.dropped + (worker.dropped if worker else 0),
+            faults=dict(self.stats.faults),
+            last_fault=self.errors[-1] if self.errors else "",
+            **more,
+        )
