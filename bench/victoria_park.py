@@ -107,20 +107,20 @@ def run_slam(
     kind = np.concatenate([np.zeros(n_dr, int), np.ones(n_sc, int)])
     index = np.concatenate([np.arange(n_dr), np.arange(n_sc)])
     order = np.lexsort((kind, times))  # controls first at equal stamps
-    poses = np.empty((len(order), 3))
-    speed, steer = data.speed_mps, data.steering_rad
+    poses: list[tuple[float, float, float]] = []
+    speed, steer = data.speed_mps.tolist(), data.steering_rad.tolist()
     ekf = slam.ekf
-    for row, e in enumerate(order):
-        i = index[e]
-        if kind[e] == 0:
-            slam.control(int(times[e]), float(speed[i]), float(steer[i]))
+    for row, (t, k, i) in enumerate(zip(*(a[order].tolist() for a in (times, kind, index)))):
+        if k == 0:
+            slam.control(t, speed[i], steer[i])
         else:
             z = data.scans[i]
-            slam.scan(int(times[e]), z[:2].T)
+            slam.scan(t, z[:2].T)
             if max_landmarks is not None and ekf.n_landmarks > max_landmarks:
-                return times[order][: row + 1] * 1e-9, poses[: row + 1], slam
-        poses[row] = ekf.vehicle
-    return times[order] * 1e-9, poses, slam
+                poses.append(ekf.pose)
+                return times[order][: row + 1] * 1e-9, np.array(poses), slam
+        poses.append(ekf.pose)
+    return times[order] * 1e-9, np.array(poses), slam
 
 
 def gps_keep(data: VictoriaParkData) -> np.ndarray:
