@@ -110,7 +110,8 @@ def run_slam(
     poses: list[tuple[float, float, float]] = []
     speed, steer = data.speed_mps.tolist(), data.steering_rad.tolist()
     ekf = slam.ekf
-    for row, (t, k, i) in enumerate(zip(*(a[order].tolist() for a in (times, kind, index)))):
+    events = zip(times[order].tolist(), kind[order].tolist(), index[order].tolist(), strict=True)
+    for row, (t, k, i) in enumerate(events):
         if k == 0:
             slam.control(t, speed[i], steer[i])
         else:

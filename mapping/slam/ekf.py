@@ -34,7 +34,6 @@ from scipy.linalg import blas, lapack
 from mapping.slam.models import HALF_PI, Step, inverse_observe, observe
 from numerics.angles import wrap, wrap_angle
 
-
 _PAIR = np.array([[0], [1]])
 
 
@@ -212,18 +211,26 @@ class EkfSlam:
         self._sync()
         idx = np.arange(self._n) if idx is None else np.asarray(idx, dtype=int)
         z, hv, hm = self._observe(idx)
+        # With the range-bearing model's Hv = [-Hm | (0, -1)'], H x = Hm (m - p) - theta:
+        # S = Hm D Hm' - Hm e t - (Hm e t)' + P_tt + R with D = Cov(m - p), e = Cov(m - p, theta)
         c = 3 + 2 * idx
         p = self._p
-        pvv = p[:3, :3]
-        pvm = np.stack([p[:3, c], p[:3, c + 1]], axis=2)  # (3, k, 2)
-        pvm = pvm.transpose(1, 0, 2)  # (k, 3, 2)
-        pmm = np.empty((len(idx), 2, 2))
-        pmm[:, 0, 0] = p[c, c]
-        pmm[:, 0, 1] = pmm[:, 1, 0] = p[c, c + 1]
-        pmm[:, 1, 1] = p[c + 1, c + 1]
-        cross = hv @ pvm @ hm.transpose(0, 2, 1)
-        s = hv @ pvv @ hv.transpose(0, 2, 1) + cross + cross.transpose(0, 2, 1)
-        s += hm @ pmm @ hm.transpose(0, 2, 1) + self.r
+        (p00, p01, p02), (_, p11, p12), (_, _, p22) = p[:3, :3].tolist()
+        vx, vy = p[:3, c], p[:3, c + 1]  # cross-covariances of the vehicle with mx, my
+        d00 = p[c, c] - 2.0 * vx[0] + p00
+        d01 = p[c, c + 1] - vy[0] - vx[1] + p01
+        d11 = p[c + 1, c + 1] - 2.0 * vy[1] + p11
+        e0, e1 = vx[2] - p02, vy[2] - p12
+        a0, a1, b0, b1 = hm[:, 0, 0], hm[:, 0, 1], hm[:, 1, 0], hm[:, 1, 1]
+        da0, da1 = d00 * a0 + d01 * a1, d01 * a0 + d11 * a1  # D a'
+        db0, db1 = d00 * b0 + d01 * b1, d01 * b0 + d11 * b1  # D b'
+        s = np.empty((len(idx), 2, 2))
+        (r00, r01), (r10, r11) = self.r.tolist()
+        s[:, 0, 0] = a0 * da0 + a1 * da1 + r00
+        s01 = a0 * db0 + a1 * db1 - (a0 * e0 + a1 * e1)
+        s[:, 0, 1] = s01 + r01
+        s[:, 1, 0] = s01 + r10
+        s[:, 1, 1] = b0 * db0 + b1 * db1 - 2.0 * (b0 * e0 + b1 * e1) + p22 + r11
         return z, hv, hm, s
 
     def joint_innovation_covariance(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
