@@ -11,10 +11,14 @@ reading a fix's time, position, altitude, mode, satellites, HDOP, speed and trac
 on the same sentences, pynmea2 parsing them and reading the same typed fields as the
 baseline (``nmea_vs_pynmea2`` = our rate over pynmea2's; pynmea2 neither frames a byte
 stream nor combines epochs). A serial line carries 10 bits per byte (8N1).
+
+``--baseline OLD_CHECKOUT`` runs that checkout's bench/codecs.py between our rounds and
+prints its rates beside ours (bench/baseline.py).
 """
 
 from __future__ import annotations
 
+import argparse
 import datetime as dt
 import json
 import sys
@@ -25,6 +29,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench.baseline import merge_best, run_baseline
 from drivers.arcos import ArcosCodec, Cmd, encode_command, frame
 from drivers.arcos.packets import encode_sip
 from drivers.cruzcore import CruzCoreCodec, encode_packet
@@ -167,20 +172,45 @@ def check() -> None:
     assert len(fixes) >= 199 and fixes[0].mode == 3, len(fixes)
 
 
-def main() -> dict[str, float]:
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rounds", type=int, default=5, help="rounds of every codec (best kept)")
+    ap.add_argument(
+        "--baseline",
+        type=Path,
+        help="another hilnav checkout (the old code): its bench/codecs.py runs between our "
+        "rounds and both figures are printed side by side (bench/baseline.py)",
+    )
+    ap.add_argument("--repeat", type=int, default=3, help="alternations with --baseline")
+    args = ap.parse_args(argv)
     check()
-    results: dict[str, float] = {}
-    print(f"{'codec':26s} {'units/s':>12s} {'line rate/s':>12s} {'x line rate':>12s}")
-    rates = best_rates()
+    names = [f"{n}_per_s" for n in BENCHES]
+    ours: dict[str, float] = {}
+    theirs: dict[str, float] = {}
+    for _ in range(args.repeat if args.baseline else 1):
+        merge_best(ours, {f"{k}_per_s": v for k, v in best_rates(args.rounds).items()}, names)
+        if args.baseline:
+            merge_best(theirs, run_baseline(args.baseline, "bench/codecs.py"), names)
+    results: dict = {}
+    print(f"{'codec':26s} {'units/s':>12s} {'line rate/s':>12s} {'x line rate':>12s}", end="")
+    print(f" {'before/s':>12s} {'before x line':>13s}" if theirs else "")
     for name, (_fn, line_rate) in BENCHES.items():
-        r = rates[name]
+        r = ours[f"{name}_per_s"]
         results[f"{name}_per_s"] = round(r)
         results[f"{name}_x_line_rate"] = round(r / line_rate, 1)
-        print(f"{name:26s} {r:>12,.0f} {line_rate:>12,.1f} {r / line_rate:>12,.1f}")
+        print(f"{name:26s} {r:>12,.0f} {line_rate:>12,.1f} {r / line_rate:>12,.1f}", end="")
+        old = theirs.get(f"{name}_per_s")
+        print(f" {old:>12,.0f} {old / line_rate:>13,.1f}" if old else "")
     results["nmea_vs_pynmea2"] = round(
         results["nmea_sentence_decode_per_s"] / results["pynmea2_sentence_parse_per_s"], 2
     )
-    print(f"{'nmea_vs_pynmea2':26s} {results['nmea_vs_pynmea2']:>12}")
+    line = f"{'nmea_vs_pynmea2':26s} {results['nmea_vs_pynmea2']:>12}"
+    if theirs:
+        before = theirs["nmea_sentence_decode_per_s"] / theirs["pynmea2_sentence_parse_per_s"]
+        results["baseline"] = {k: round(v) for k, v in theirs.items()}
+        results["baseline"]["nmea_vs_pynmea2"] = round(before, 2)
+        line += f" {'':>12s} {'':>12s} {before:>12.2f}"
+    print(line)
     print(json.dumps(results))
     return results
 

@@ -9,8 +9,6 @@ only upwards, altitudes and error estimates whenever the handler gave them.
 
 from __future__ import annotations
 
-from operator import ne
-
 # Mask bits (what a sentence set; gpsd's gps_mask_t, the ones NMEA uses).
 TIME_SET = 1 << 0
 LATLON_SET = 1 << 1
@@ -83,15 +81,14 @@ SPECIAL = frozenset(("mode", "status", "epx", "epy", "dgps_age", "dgps_station",
 
 def merge(to: Fix, mask: int, new: dict) -> bool:
     """Merge one sentence's data (``new``, set under ``mask``) into the fix ``to``; whether
-    anything in it changed. The plain fields are compared and copied by C loops (their
-    class default is None, as ``dict.get`` of the instance's ``__dict__`` gives)."""
+    anything in it changed. The plain fields (GATE's) are read and written in the instance's
+    ``__dict__`` (their class default is None, as ``dict.get`` gives)."""
     d = to.__dict__
+    get = d.get
     changed = False
-    keys = new.keys() - SPECIAL
-    if keys:
-        values = list(map(new.__getitem__, keys))
-        if any(map(ne, map(d.get, keys), values)):
-            d.update(zip(keys, values, strict=True))
+    for name, value in new.items():
+        if name in GATE and get(name) != value:
+            d[name] = value
             changed = True
     if mask & TIME_SET and "time_ns" not in new and d.get("time_ns") is not None:
         d["time_ns"], changed = None, True
