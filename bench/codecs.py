@@ -187,8 +187,8 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument(
         "--baseline",
         type=Path,
-        help="another hilnav checkout (the old code): its bench/codecs.py runs between our "
-        "rounds and both figures are printed side by side (bench/baseline.py)",
+        help="another hilnav checkout (the old code): its codecs are measured by this script "
+        "between our rounds, both figures printed side by side (bench/baseline.py)",
     )
     ap.add_argument("--repeat", type=int, default=3, help="alternations with --baseline")
     args = ap.parse_args(argv)
