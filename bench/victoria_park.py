@@ -17,6 +17,7 @@ realtime_factor (1549 s / seconds), plus gps_fixes_used/excluded and counters. W
 a PNG of the path, the GPS and the landmarks to --out (default bench/out/).
 
     python bench/victoria_park.py [--data DIR] [--association nn|jcbb] [--compare]
+        [--repeat N] [--baseline OLD_CHECKOUT]
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ import numpy as np  # noqa: E402
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench.baseline import run_baseline  # noqa: E402
 from hilnav.analysis.geometry import apply_fit, rigid_fit  # noqa: E402
 from hilnav.analysis.gps_error import (  # noqa: E402
     errors_at_fixes,
@@ -107,20 +109,21 @@ def run_slam(
     kind = np.concatenate([np.zeros(n_dr, int), np.ones(n_sc, int)])
     index = np.concatenate([np.arange(n_dr), np.arange(n_sc)])
     order = np.lexsort((kind, times))  # controls first at equal stamps
-    poses = np.empty((len(order), 3))
-    speed, steer = data.speed_mps, data.steering_rad
+    poses: list[tuple[float, float, float]] = []
+    speed, steer = data.speed_mps.tolist(), data.steering_rad.tolist()
     ekf = slam.ekf
-    for row, e in enumerate(order):
-        i = index[e]
-        if kind[e] == 0:
-            slam.control(int(times[e]), float(speed[i]), float(steer[i]))
+    events = zip(times[order].tolist(), kind[order].tolist(), index[order].tolist(), strict=True)
+    for row, (t, k, i) in enumerate(events):
+        if k == 0:
+            slam.control(t, speed[i], steer[i])
         else:
             z = data.scans[i]
-            slam.scan(int(times[e]), z[:2].T)
+            slam.scan(t, z[:2].T)
             if max_landmarks is not None and ekf.n_landmarks > max_landmarks:
-                return times[order][: row + 1] * 1e-9, poses[: row + 1], slam
-        poses[row] = ekf.vehicle
-    return times[order] * 1e-9, poses, slam
+                poses.append(ekf.pose)
+                return times[order][: row + 1] * 1e-9, np.array(poses), slam
+        poses.append(ekf.pose)
+    return times[order] * 1e-9, np.array(poses), slam
 
 
 def gps_keep(data: VictoriaParkData) -> np.ndarray:
@@ -243,6 +246,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--association", choices=["nn", "jcbb"], default="nn")
     ap.add_argument("--compare", action="store_true", help="also run every geometry variant")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "out")
+    ap.add_argument(
+        "--baseline",
+        type=Path,
+        help="another hilnav checkout (the old code): its bench/victoria_park.py runs "
+        "between ours, both figures printed side by side (bench/baseline.py)",
+    )
+    ap.add_argument("--repeat", type=int, default=1, help="timed runs (the fastest kept)")
     args = ap.parse_args(argv)
 
     data = load_victoria_park(args.data)
@@ -268,9 +278,27 @@ def main(argv: list[str] | None = None) -> int:
             print(f"geometry {name:12s} {geom}: {results[name]}", flush=True)
 
     cfg = replace(BASE, geometry=GEOMETRIES[args.geometry], association=args.association)
-    t0 = time.perf_counter()
-    times, poses, slam = run_slam(data, cfg)
-    seconds = time.perf_counter() - t0
+    seconds = float("inf")
+    before: list[dict] = []
+    for _ in range(max(args.repeat, 1)):
+        t0 = time.perf_counter()
+        times, poses, slam = run_slam(data, cfg)
+        seconds = min(seconds, time.perf_counter() - t0)
+        if args.baseline:
+            before.append(
+                run_baseline(
+                    args.baseline,
+                    "bench/victoria_park.py",
+                    "--data",
+                    str(args.data),
+                    "--association",
+                    args.association,
+                    "--geometry",
+                    args.geometry,
+                    "--out",
+                    str(args.out / "baseline"),
+                )  # fmt: skip
+            )
     ev = evaluate(data, times, poses, keep)
     st = slam.stats
     png = args.out / f"victoria_park_{args.association}.png"
@@ -305,6 +333,12 @@ def main(argv: list[str] | None = None) -> int:
     }
     if results:
         out["compare"] = results
+    if before:
+        fastest = min(before, key=lambda b: b["seconds"])
+        out["baseline"] = {k: fastest[k] for k in ("ate_rmse_m", "max_err_m", "median_err_m",
+                                                   "landmarks", "seconds", "realtime_factor")}  # fmt: skip
+        print(f"before: {out['baseline']}")
+        print(f"after:  ATE {out['ate_rmse_m']} m, {out['seconds']} s, {out['realtime_factor']}x")
     print(json.dumps(out))
     return 0
 

@@ -207,3 +207,31 @@ def test_diagnostics_show_malformed_and_duplicate_frames():
         codec.feed_frame(arb, frame, 0)
     diag = _Link(codec).diagnostics(0)
     assert (diag.frames_ok, diag.duplicates, diag.malformed, diag.frames_lost) == (2, 1, 1, 0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.data())
+def test_can_one_pass_path_equals_the_numpy_conversion(data):
+    """The CAN codec's one-pass decode + table look-up gives the scan of the per-sample
+    numpy path (IrConverter._convert), whatever the channel count and resolution."""
+    bits = data.draw(st.sampled_from([10, 12]))
+    n = data.draw(st.integers(1, min(8, max_channels(bits))))
+    cfg = IrBoardConfig(board_id=3, adc_bits=bits, mounts=((0.0, 0.0, 0.0),) * n)
+    codec = IrCanCodec(cfg)
+    counts = data.draw(st.lists(st.integers(0, (1 << bits) - 1), min_size=n, max_size=n))
+    sample = RawSample(3, data.draw(st.integers(0, 15)), bits, tuple(counts))
+    scan = codec.feed_frame(*pack_sample(sample), 7)
+    assert repr(scan) == repr(codec.converter._convert(sample, 7))  # nan == nan, exactly
+    assert type(scan.raw_counts[0]) is int and codec.stats.frames_ok == 1
+
+
+def test_can_frames_of_boards_with_several_curves_or_a_median_take_the_general_path():
+    table = SharpCurve((1.0, 2.0, 3.0), (2.0, 1.6, 1.4))
+    for cfg in (
+        IrBoardConfig(board_id=2, mounts=((0, 0, 0), (0, 0, 1)), curves=(table, SharpCurve())),
+        IrBoardConfig(board_id=2, mounts=((0, 0, 0), (0, 0, 1)), median_window=3),
+    ):
+        codec = IrCanCodec(cfg)
+        sample = RawSample(2, 5, 10, (300, 400))
+        scan = codec.feed_frame(*pack_sample(sample), 1)
+        assert repr(scan) == repr(IrCanCodec(cfg).converter(sample, 1))

@@ -171,3 +171,39 @@ def test_an_epoch_without_gga_does_not_keep_the_last_ggas_quality():
     )
     # the satellites used stay (gpsd's count persists until a GGA or GSA changes it)
     assert [(f.quality, f.satellites) for f in fixes] == [(2, 8), (1, 8)]
+
+
+def test_every_handler_gives_a_fix_field_only_with_its_mask_bit(shared_dir):
+    """merge() copies the fix fields a sentence gives without looking at the mask: that
+    holds while every handler sets a field's bit (fixstate.GATE) whenever it gives it.
+    Checked on the sentences of gpsd's logs and on copies with fields set to odd values."""
+    import random
+
+    from drivers.nmea.codec import NmeaFramer
+    from drivers.nmea.fixstate import GATE, SPECIAL
+    from drivers.nmea.session import HANDLERS, Session
+    from tests.nmea_stream import NASTY
+
+    rng = random.Random(3)
+    sentences = []
+    for log in sorted((shared_dir / "data" / "gpsd").glob("*.log")):
+        sentences += NmeaFramer().feed(log.read_bytes())
+    for talker, kind, fields in list(sentences):
+        for _ in range(3):
+            f = list(fields)
+            for _ in range(rng.randint(1, 3)):
+                f[rng.randrange(len(f))] = rng.choice(NASTY + ("A", "1", "3", "E"))
+            sentences.append((talker, kind, tuple(f)))
+    st = Session()
+    seen = set()
+    for talker, kind, fields in sentences:
+        kind = "P" + kind if talker == "P" else kind
+        if kind not in HANDLERS:
+            continue
+        mask, new = st.parse(talker, kind, fields)
+        assert new.keys() <= GATE.keys() | SPECIAL, (kind, new)
+        for key in new.keys() - SPECIAL:
+            assert GATE[key] == 0 or mask & GATE[key], (kind, fields, key)
+        seen |= new.keys()
+        st.apply(mask, new)
+    assert {"lat", "alt_msl", "speed", "track", "time_ns", "geoid_sep"} <= seen

@@ -19,7 +19,6 @@ def make_filter(seed: int = 0, n: int = 5) -> tuple[EkfSlam, np.random.Generator
         p0=np.diag([0.1, 0.2, 0.01]),
         r=np.diag([0.3**2, np.deg2rad(2.0) ** 2]),
         bearing_offset=HALF_PI,
-        capacity=2,  # forces the storage to grow
     )
     z = np.stack([rng.uniform(5, 30, n), rng.uniform(0.2, np.pi - 0.2, n)], 1)
     ekf.augment(z)
@@ -41,9 +40,7 @@ def dense_augment(x, p, xv_idx, z, r, offset):
 
 
 def test_augmentation_matches_dense_jacobian():
-    ekf = EkfSlam(
-        AckermannModel(), x0=np.array([0.5, -1.0, 1.0]), p0=np.diag([0.2, 0.3, 0.05]), capacity=1
-    )
+    ekf = EkfSlam(AckermannModel(), x0=np.array([0.5, -1.0, 1.0]), p0=np.diag([0.2, 0.3, 0.05]))
     x, p = ekf.state, ekf.covariance
     rng = np.random.default_rng(1)
     for _ in range(4):

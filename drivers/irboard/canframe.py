@@ -17,6 +17,7 @@ frames (gaps of up to 15).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from drivers.base import CodecStats
@@ -120,7 +121,8 @@ class CanSampleDecoder:
 
     def __post_init__(self) -> None:
         self.stats = CodecStats()
-        self._last: tuple[int, bytes] | None = None
+        self._last_seq = -1  # the previous frame's sequence number and data (-1: none yet)
+        self._last_data = b""
         self._sample_id = SAMPLE_ID_BASE + self.board_id
         self._mask = (1 << self.adc_bits) - 1
         # data length -> bit offsets of the channels (None: no channel count fits)
@@ -128,6 +130,10 @@ class CanSampleDecoder:
             dlc: None if (lay := _layout(dlc, self.adc_bits)) is None else lay[1]
             for dlc in range(9)
         }
+
+    def shifts(self, dlc: int) -> tuple[int, ...] | None:
+        """Bit offsets of the channels of a frame of ``dlc`` bytes (None: no count fits)."""
+        return self._shifts.get(dlc)
 
     def feed_frame(self, arb_id: int, data: bytes, is_extended: bool = False) -> RawSample | None:
         got = self.feed_counts(arb_id, data, is_extended)
@@ -139,24 +145,40 @@ class CanSampleDecoder:
         """:meth:`feed_frame` as (sequence number, counts), without the RawSample."""
         if is_extended or arb_id != self._sample_id:
             return None  # someone else's frame on a shared bus: not an error
-        data = bytes(data)
+        if data.__class__ is not bytes:
+            data = bytes(data)
         shifts = self._shifts.get(len(data))
         if shifts is None:
             self.stats.bytes_skipped += len(data)
             self.stats.bad_checksums += 1
             return None
         v = int.from_bytes(data, "little")
-        mask = self._mask
         seq = v & 0xF
-        last = self._last
-        if last is not None:
-            if last[0] == seq and last[1] == data:
-                self.stats.duplicates += 1
-                return None
-            self.stats.frames_lost += (seq - last[0] - 1) & 0xF
-        self._last = (seq, data)
-        self.stats.frames_ok += 1
+        if not self.accept(seq, data):
+            return None
+        mask = self._mask
         return seq, tuple([(v >> shift) & mask for shift in shifts])
+
+    def accept(self, seq: int, data: bytes) -> bool:
+        """The sequence bookkeeping of a well-formed frame of this board: False for a
+        duplicate (counted), else the frames lost before it counted and True."""
+        last = self._last_seq
+        if last >= 0:
+            if last == seq and self._last_data == data:
+                self.stats.duplicates += 1
+                return False
+            self.stats.frames_lost += (seq - last - 1) & 0xF
+        self._last_seq = seq
+        self._last_data = data
+        self.stats.frames_ok += 1
+        return True
+
+
+def unpacker(shifts: tuple[int, ...], mask: int) -> Callable[[int], tuple[int, ...]]:
+    """``f(v) == tuple((v >> s) & mask for s in shifts)``, written out for the layout (a
+    generated function of integer constants: no loop per frame)."""
+    items = "".join(f"v >> {int(s)} & {int(mask)}, " for s in shifts)
+    return eval(f"lambda v: ({items})")  # integers only
 
 
 # A CAN frame as logged (msgs.RawBytes of the IR device on CAN): the arbitration id as 4

@@ -13,12 +13,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from operator import itemgetter
 
 import numpy as np
 
 from drivers.irboard.serialframe import RawSample
 from drivers.sharp import STATUS_NAMES, MedianFilter, SharpCurve
 from msgs import IrScan
+from msgs.construct import positional_constructor
+
+make_scan = positional_constructor(IrScan)
 
 D = math.pi / 180.0
 # Six sensors on a Pioneer 3-DX body (x forward, y left, metres; yaw radians).
@@ -88,9 +92,9 @@ class IrConverter:
         cfg = self.config
         w = cfg.median_window
         self._median = MedianFilter(cfg.channels, w) if w > 1 else None
-        self._volts, self._tables, triples = _tables(cfg.adc_bits, cfg.vref_v, cfg.curves)
-        # count -> (volts, range, status): the one-curve case without a median filter
-        self._triples = triples if self._median is None else None
+        self._volts, self._tables, lists = _tables(cfg.adc_bits, cfg.vref_v, cfg.curves)
+        # count -> volts, range, status as lists: the one-curve case without a median
+        self._lists = lists if self._median is None else None
 
     def __call__(self, s: RawSample, stamp_ns: int) -> IrScan | None:
         cfg = self.config
@@ -100,21 +104,41 @@ class IrConverter:
             return None
         return self.scan(s, counts, stamp_ns)
 
+    def lookup_lists(self) -> tuple[list, list, list] | None:
+        """(volts, ranges, statuses) indexed by count when one curve serves every channel
+        and there is no median filter; else None."""
+        return self._lists
+
     def scan_counts(
         self, board_id: int, seq: int, counts: tuple[int, ...], stamp_ns: int
     ) -> IrScan | None:
-        """:meth:`__call__` of a decoder's (sequence, counts) at the board's resolution: one
-        look-up per channel when one curve serves every channel and there is no median."""
-        if self._triples is None or len(counts) != self.config.channels:
+        """:meth:`__call__` of a decoder's (sequence, counts) at the board's resolution.
+        When one curve serves every channel and there is no median filter, one
+        ``itemgetter`` of the counts reads the volts, ranges and statuses of all channels
+        from the three tables (counts are below 2**adc_bits, the tables' length)."""
+        lists = self._lists
+        n = len(counts)
+        if lists is None or n != self.config.channels or n < 2:
             return self(RawSample(board_id, seq, self.config.adc_bits, counts), stamp_ns)
+        get = itemgetter(*counts)
         try:
-            volts, ranges, status = zip(*map(self._triples.__getitem__, counts), strict=True)
-        except KeyError:
+            volts, ranges, status = get(lists[0]), get(lists[1]), get(lists[2])
+        except (IndexError, TypeError):
             return self(RawSample(board_id, seq, self.config.adc_bits, counts), stamp_ns)
-        return IrScan(stamp_ns, board_id, seq, ranges, status, volts, counts)  # type: ignore[arg-type]
+        return make_scan(stamp_ns, board_id, seq, ranges, status, volts, counts)
 
     def scan(self, s: RawSample, counts: tuple[int, ...], stamp_ns: int) -> IrScan:
         """The scan of a sample whose channel count and resolution match the board's."""
+        if self._lists is not None and len(counts) > 1:
+            raw = tuple(map(int, counts))
+            if min(raw) >= 0:
+                get = itemgetter(*raw)
+                lists = self._lists
+                try:
+                    volts, ranges, status = get(lists[0]), get(lists[1]), get(lists[2])
+                except IndexError:
+                    return self._convert(s, stamp_ns)
+                return make_scan(stamp_ns, s.board_id, s.seq, ranges, status, volts, raw)
         try:
             volts = tuple(map(self._volts.__getitem__, counts))
             if len(self._tables) == 1:
@@ -176,10 +200,10 @@ class IrConverter:
 @lru_cache(maxsize=16)
 def _tables(
     adc_bits: int, vref_v: float, curves: tuple[SharpCurve, ...]
-) -> tuple[dict, list, dict | None]:
+) -> tuple[dict, list, tuple[list, list, list] | None]:
     """count -> volts, per curve (count -> range, count -> status name), and with one curve
-    count -> (volts, range, status), for every count of the resolution (one curve: the
-    datasheet's on every channel)."""
+    the lists (volts, ranges, statuses) indexed by count, for every count of the resolution
+    (one curve: the datasheet's on every channel)."""
     full = (1 << adc_bits) - 1
     volts = np.arange(full + 1, dtype=float) * (vref_v / full)
     out = []
@@ -189,11 +213,11 @@ def _tables(
             (dict(enumerate(float(x) for x in r)), dict(enumerate(STATUS_NAMES[k] for k in st)))
         )
     vt = dict(enumerate(float(v) for v in volts))
-    triples = None
+    lists = None
     if len(out) == 1:
         rt, st = out[0]
-        triples = {c: (v, rt[c], st[c]) for c, v in vt.items()}
-    return vt, out, triples
+        lists = (list(vt.values()), list(rt.values()), list(st.values()))
+    return vt, out, lists
 
 
 def volts_to_counts(volts: np.ndarray, adc_bits: int, vref_v: float) -> np.ndarray:

@@ -32,16 +32,76 @@ _sentence = tuple.__new__  # Sentence(...) without the NamedTuple's Python-level
 _NUMPY_FROM = 512  # bytes from which a run's prefix XOR is computed with numpy
 
 
+# byte -> its value as a hex digit, -1 for any other byte
+_HEXVAL = np.full(256, -1, dtype=np.int16)
+for _i, _c in enumerate(b"0123456789ABCDEF"):
+    _HEXVAL[_c] = _i
+for _i, _c in enumerate(b"abcdef"):
+    _HEXVAL[_c] = 10 + _i
+_NOT_ALNUM = np.ones(256, dtype=bool)
+_NOT_ALNUM[list(b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz")] = False
+# what the vectorised checks say of a line: a sentence (proprietary: GOOD_P), a wrong
+# checksum, a bad address (fewer than 3 characters or not alphanumeric), anything else
+GOOD, GOOD_P, BAD_SUM, BAD_ADDRESS, OTHER = 0, 1, 2, 3, 4
+
+
 def _prefix_xor(data: bytes) -> bytes:
     """p[i] = data[0] ^ ... ^ data[i] (as bytes); p[j] ^ p[i] is the XOR of data[i+1..j]."""
-    if len(data) >= _NUMPY_FROM:
-        return np.bitwise_xor.accumulate(np.frombuffer(data, dtype=np.uint8)).tobytes()
     out = bytearray(len(data))
     c = 0
     for i, b in enumerate(data):
         c ^= b
         out[i] = c
     return bytes(out)
+
+
+def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
+    """Every line of a run of complete ASCII lines, checked at once with numpy: (starts,
+    ends without a CR, ends of the address, verdicts). A sentence (GOOD, GOOD_P) is
+    ``$...*HH`` of printable bytes, one ``$``, no longer than ``max_line``, the XOR of the
+    bytes between ``$`` and ``*`` equal to HH, an address (up to the first comma) of 3 or
+    more letters and digits; BAD_SUM and BAD_ADDRESS fail only that; OTHER is anything
+    else (the per-line path)."""
+    a = np.frombuffer(region, dtype=np.uint8)
+    nl = np.flatnonzero(a == 10)
+    starts = np.concatenate(([0], nl + 1))
+    ends = np.concatenate((nl, [len(a)]))
+    last = np.maximum(ends - 1, 0)
+    ends = ends - ((ends > starts) & (a[last] == 13))  # a CR ends the line, not part of it
+    n = ends - starts
+    ok = (n >= 5) & (n <= max_line)  # "$" + address + "*HH"
+    s, e = starts[ok], ends[ok]
+    ok[ok] = (a[s] == 36) & (a[e - 3] == 42)  # "$" ... "*"
+    # one "$" per line and no byte that is not printable: counted between their positions
+    dollars = np.flatnonzero(a == 36)
+    odd = np.flatnonzero((a < 32) | (a > 126))
+    ok &= np.searchsorted(dollars, ends) - np.searchsorted(dollars, starts) == 1
+    ok &= np.searchsorted(odd, ends) == np.searchsorted(odd, starts)
+    s, e = starts[ok], ends[ok]
+    hi, lo = _HEXVAL[a[e - 2]], _HEXVAL[a[e - 1]]
+    hexed = (hi >= 0) & (lo >= 0)
+    ok[ok] = hexed
+    verdict = np.where(ok, GOOD, OTHER)
+    cut = ends - 3  # the address ends at the first comma, else at the "*"
+    good = np.flatnonzero(ok)
+    if len(good):
+        s, e, hi, lo = s[hexed], e[hexed], hi[hexed], lo[hexed]
+        bounds = np.empty(2 * len(s), dtype=np.intp)
+        bounds[0::2] = s + 1
+        bounds[1::2] = e - 3
+        xor = np.bitwise_xor.reduceat(a, bounds)[0::2]  # of the bytes between "$" and "*"
+        commas = np.flatnonzero(a == 44)
+        first = (
+            commas[np.minimum(np.searchsorted(commas, s), len(commas) - 1)] if len(commas) else e
+        )
+        c = np.where((first > s) & (first < e - 3), first, e - 3)
+        cut[good] = c
+        other = np.flatnonzero(_NOT_ALNUM[a])
+        bad_address = (c - s < 4) | (np.searchsorted(other, c) != np.searchsorted(other, s + 1))
+        verdict[good] = np.where(
+            xor != hi * 16 + lo, BAD_SUM, np.where(bad_address, BAD_ADDRESS, a[s + 1] == 80)
+        )
+    return starts.tolist(), ends.tolist(), cut.tolist(), verdict.tolist()
 
 
 class NmeaFramer:
@@ -81,11 +141,15 @@ class NmeaFramer:
 
     def _lines(self, region: bytes, out: list[Sentence]) -> None:
         """Every line of a run of complete lines. The usual line (``$...*HH``, printable
-        ASCII, short enough) is checked here with the XOR of the whole run computed at once
-        (a prefix XOR: a line's checksum is two look-ups); any other goes to :meth:`_line`."""
+        ASCII, short enough, right checksum) is checked for the whole run at once, with
+        numpy from ``_NUMPY_FROM`` bytes on (:func:`_classify`), else with one prefix XOR
+        (a line's checksum is two look-ups); any other line goes to :meth:`_line`."""
         if not region.isascii():
             for line in region.split(b"\n"):
                 self._line(line, out)
+            return
+        if len(region) >= _NUMPY_FROM:
+            self._checked(region, *_classify(region, self.max_line), out)
             return
         text = region.decode("ascii")
         prefix = _prefix_xor(region)
@@ -125,6 +189,31 @@ class NmeaFramer:
                 append(_sentence(Sentence, ("P", address[1:], tuple(rest.split(",")))))
             else:
                 append(_sentence(Sentence, (address[:2], address[2:], tuple(rest.split(",")))))
+
+    def _checked(
+        self, region: bytes, starts: list, ends: list, cuts: list, verdicts: list, out: list
+    ) -> None:
+        """The lines of :func:`_classify`'s verdicts: sentences, counts, or :meth:`_line`."""
+        text = region.decode("ascii")
+        stats = self.stats
+        append = out.append
+        skipped = 0
+        for s, e, c, verdict in zip(starts, ends, cuts, verdicts, strict=True):
+            if verdict == GOOD:
+                fields = tuple(text[c + 1 : e - 3].split(","))
+                append(_sentence(Sentence, (text[s + 1 : s + 3], text[s + 3 : c], fields)))
+            elif verdict == GOOD_P:  # proprietary: $P<maker><type>
+                fields = tuple(text[c + 1 : e - 3].split(","))
+                append(_sentence(Sentence, ("P", text[s + 2 : c], fields)))
+            elif verdict == OTHER:
+                end = region.find(b"\n", s)
+                self._line(region[s : len(region) if end < 0 else end], out)
+            else:
+                skipped += e - s
+                if verdict == BAD_SUM:
+                    stats.bad_checksums += 1
+        stats.frames_ok += verdicts.count(GOOD) + verdicts.count(GOOD_P)
+        stats.bytes_skipped += skipped
 
     def _line(self, line: bytes, out: list[Sentence]) -> None:
         start = line.rfind(b"$")

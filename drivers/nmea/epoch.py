@@ -50,6 +50,7 @@ from drivers.nmea.fixstate import (
 from drivers.nmea.local import Datum
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, Session
 from msgs import GpsFix, GpsSatellite, GpsSky
+from msgs.construct import positional_constructor
 
 __all__ = ["ROLLOVER_S", "EpochCombiner", "iso_time"]
 
@@ -92,6 +93,8 @@ def iso_time(ns: int | None) -> str:
 
 
 # What a fix without a 2D (3D) fix, or a GST of another second, shows: nothing.
+_make_fix = positional_constructor(GpsFix)
+_make_satellite = positional_constructor(GpsSatellite)
 _NO_2D = (None,) * 17
 _NO_3D = (None,) * 6
 _NO_GST = (None,) * 7
@@ -134,17 +137,16 @@ class EpochCombiner:
             self._last_timed = None
             self._reported = False
         worthy = mask & _FIX_BITS
-        if not worthy and self._pending and self._snap is None and (mask & SATELLITE_SET or new):
+        if worthy:
+            self._pending = True
+            self._snap = None
+        elif self._pending and self._snap is None and (mask & SATELLITE_SET or new):
             self._snap = st.fix.copy()  # the fix as gpsd last reported it (see module doc)
         st.apply(mask, new)
         self._stamp_ns = stamp_ns
         if kind != "GSV" and kind != "GSA":
             self._talker = talker
-        if worthy:
-            self._pending = True
-            self._snap = None
-        timed = st.latch_frac or (kind == "ZDA" and "time_ns" in new)
-        if timed and kind in _TIMED:
+        if kind in _TIMED and (st.latch_frac or (kind == "ZDA" and "time_ns" in new)):
             self._last_timed = kind
             if kind == self._ender and not self._reported:
                 self._report(out)
@@ -182,7 +184,7 @@ class EpochCombiner:
         sky = st.sky
         sky.changed = False
         sats = tuple(
-            GpsSatellite(s.prn, s.gnss_id, s.sv_id, s.elevation, s.azimuth, s.ss, s.used)
+            _make_satellite(s.prn, s.gnss_id, s.sv_id, s.elevation, s.azimuth, s.ss, s.used)
             for s in sky.view
             if s.prn
         )
@@ -232,7 +234,7 @@ class EpochCombiner:
         dop = st.sky.dop
         quality = st.quality if st.quality is not None else (1 if mode >= MODE_2D else 0)
         sats = st.gga_sats if st.gga_sats is not None else st.sky.used_count or None
-        return GpsFix(
+        return _make_fix(
             self._stamp_ns, iso_time(t), lat, lon, alt_msl, geoid_sep, mode, quality, sats,
             dop.get("hdop"), dop.get("pdop"), dop.get("vdop"), speed, track, gst[4], gst[5],
             gst[6], east, north, self._talker, f.status, alt_hae, climb, eph, epv, epx, epy,

@@ -112,17 +112,17 @@ def _derived(fix) -> None:
         fix.climb = None
     if fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
         _velocities(fix)
-    track, magvar = fix.track, fix.magvar
+    track, magvar, magtrack = fix.track, fix.magvar, fix.magtrack
     if magvar is not None:
-        if fix.magtrack is None and track is not None:
-            fix.magtrack = track + magvar
-        elif fix.magtrack is not None and track is None:
-            track = fix.magtrack - magvar
+        if magtrack is None and track is not None:
+            fix.magtrack = magtrack = track + magvar
+        elif magtrack is not None and track is None:
+            track = magtrack - magvar
     if track is not None and not 0.0 <= track < 360.0:
         track = _norm360(track)
     fix.track = track
-    if fix.magtrack is not None and not 0.0 <= fix.magtrack < 360.0:
-        fix.magtrack = _norm360(fix.magtrack)
+    if magtrack is not None and not 0.0 <= magtrack < 360.0:
+        fix.magtrack = _norm360(magtrack)
     sep = fix.geoid_sep
     if sep is not None:
         if fix.alt_msl is None:
@@ -137,9 +137,10 @@ def error_model(st: Session, new: dict) -> None:
     fix = st.fix
     t = fix.time_ns
     if t:
-        dt = (t - (st.lastfix.time_ns or 0)) * 1e-9
+        last = st.lastfix
+        dt = (t - (last.time_ns or 0)) * 1e-9
         if dt > 0.0099 or dt < -0.0099:
-            st.oldfix = st.lastfix  # time moved on: the last fix is now the previous one
+            st.oldfix = last  # time moved on: the last fix is now the previous one
         else:
             dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
     else:
@@ -170,16 +171,17 @@ def _estimates(st, fix, new: dict, dt: float, moved: bool) -> None:
     h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
     dop = st.sky.dop
     if dop:
-        if "xdop" in dop and "epx" not in new:
-            fix.epx = dop["xdop"] * h_uere
-        if "ydop" in dop and "epy" not in new:
-            fix.epy = dop["ydop"] * h_uere
-        if fix.epv is None and fix.mode >= MODE_3D and "vdop" in dop:
-            fix.epv = dop["vdop"] * v_uere
-        if fix.eph is None and "hdop" in dop:
-            fix.eph = dop["hdop"] * p_uere
-        if fix.sep is None and "pdop" in dop:
-            fix.sep = dop["pdop"] * p_uere
+        get = dop.get
+        if "epx" not in new and (xdop := get("xdop")) is not None:
+            fix.epx = xdop * h_uere
+        if "epy" not in new and (ydop := get("ydop")) is not None:
+            fix.epy = ydop * h_uere
+        if fix.epv is None and fix.mode >= MODE_3D and (vdop := get("vdop")) is not None:
+            fix.epv = vdop * v_uere
+        if fix.eph is None and (hdop := get("hdop")) is not None:
+            fix.eph = hdop * p_uere
+        if fix.sep is None and (pdop := get("pdop")) is not None:
+            fix.sep = pdop * p_uere
     if not moved:
         return
     old = st.oldfix

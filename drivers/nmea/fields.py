@@ -88,7 +88,8 @@ def _parse_hhmmss(s: str) -> int | None:
     head = s[:6]
     if len(head) < 6 or not (head.isdigit() and head.isascii()):
         return None
-    h, m, sec = int(head[0:2]), int(head[2:4]), int(head[4:6])
+    h, rest = divmod(int(head), 10000)
+    m, sec = divmod(rest, 100)
     if h > 23 or m > 59 or sec > 60:
         return None
     ns = 0
@@ -123,7 +124,7 @@ def _degrees(field: str) -> float | None:
         return None
     if whole.isdigit() and frac.isdigit() and field.isascii():  # the usual field
         minutes = int(whole)
-        return (minutes - minutes // 100 * 40 + float("." + frac)) * (1.0 / 60.0)
+        return (minutes - minutes // 100 * 40 + float(field[len(whole) :])) * (1.0 / 60.0)
     m = _INT.match(whole)
     if m is None or m.end() != len(whole):
         if whole:

@@ -64,31 +64,36 @@ class Fix:
         return c
 
 
-# new-data key -> the mask bit it needs (0: copied whenever given); keys not listed here
-# are the session's (DOPs, GGA's quality and count) or handled below
-_GATE = {
+# new-data key -> the mask bit it needs (0: copied whenever given). Every handler gives a
+# key only with its bit set (tests/test_nmea_gpsd.py checks it), so merge() copies the keys
+# without looking at the bits; the table documents the rule and is what the test checks.
+GATE = {
     "time_ns": TIME_SET, "lat": LATLON_SET, "lon": LATLON_SET, "alt_hae": ALTITUDE_SET,
     "alt_msl": ALTITUDE_SET, "track": TRACK_SET, "magtrack": MAGNETIC_TRACK_SET,
     "magvar": MAGNETIC_TRACK_SET, "speed": SPEED_SET, "climb": CLIMB_SET, "vel_n": VNED_SET,
     "vel_e": VNED_SET, "vel_d": VNED_SET, "epd": 0, "eph": 0, "eps": 0, "sep": 0,
     "geoid_sep": 0, "epv": 0,
 }  # fmt: skip
+# keys of new data with rules of their own (below), or the session's (DOPs, GGA's counts)
+SPECIAL = frozenset(("mode", "status", "epx", "epy", "dgps_age", "dgps_station", "dop",
+                     "quality", "gga_sats", "used_count"))  # fmt: skip
 
 
 def merge(to: Fix, mask: int, new: dict) -> bool:
     """Merge one sentence's data (``new``, set under ``mask``) into the fix ``to``; whether
-    anything in it changed."""
-    gate = _GATE
+    anything in it changed. The plain fields (GATE's) are read and written in the instance's
+    ``__dict__`` (their class default is None, as ``dict.get`` gives)."""
+    d = to.__dict__
+    get = d.get
     changed = False
     for name, value in new.items():
-        need = gate.get(name)
-        if need is not None and (need == 0 or mask & need) and getattr(to, name) != value:
-            setattr(to, name, value)
+        if name in GATE and get(name) != value:
+            d[name] = value
             changed = True
-    if mask & TIME_SET and "time_ns" not in new and to.time_ns is not None:
-        to.time_ns, changed = None, True
-    if mask & LATLON_SET and "lat" not in new and to.lat is not None:
-        to.lat = to.lon = None
+    if mask & TIME_SET and "time_ns" not in new and d.get("time_ns") is not None:
+        d["time_ns"], changed = None, True
+    if mask & LATLON_SET and "lat" not in new and d.get("lat") is not None:
+        d["lat"] = d["lon"] = None
         changed = True
     if mask & MODE_SET:
         mode = new.get("mode", MODE_NOT_SEEN)

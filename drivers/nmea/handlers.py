@@ -56,54 +56,63 @@ _GGA_STATUS = {0: 0, 1: 1, 2: 2, 3: 9, 4: 3, 5: 4, 6: 5, 7: 7, 8: 8}
 def _timed(st: Session, field: str, mask: int) -> int:
     """Merge a time of day, register it for the cycle detector; TIME_SET once dated."""
     if field and st.merge_hhmmss(field):
-        st.register_time(field)
+        st.last_frac = st.this_frac  # Session.register_time, inline
+        st.this_frac = fnum(field)
+        st.latch_frac = True
         if st.date is not None:
             return mask | TIME_SET
     return mask
 
 
+def _int(s: str) -> int:
+    """:func:`atoi` with the usual field (plain digits) read at once."""
+    return int(s) if s.isdigit() and s.isascii() else atoi(s)
+
+
 def gga(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
     mask = 0
+    f0 = f[0]
     last_talker = st.last_gga_talker
-    st.last_gga_talker = talker[1:2]
-    quality = atoi(f[5]) if f[5] else -1
+    this_talker = st.last_gga_talker = talker[1:2]
+    quality = _int(f[5]) if f[5] else -1
     status = _GGA_STATUS.get(quality)
-    if quality == 0 and not f[0]:
+    if quality == 0 and not f0:
         st.time_lost()  # its REPORT/TIME bits are overwritten just below, as in gpsd
     if status is not None:
         new["status"] = status
         mask = STATUS_SET
-    if last_talker and last_talker != st.last_gga_talker:
-        st.latch_mode = False
-    else:
-        st.latch_mode = f[0] == st.last_gga_time
-    if st.latch_mode:
+    latch = st.latch_mode = (
+        f0 == st.last_gga_time if not last_talker or last_talker == this_talker else False
+    )
+    if latch:
         new["status"] = STATUS_UNK
         new["mode"] = MODE_NO_FIX
         mask |= MODE_SET | STATUS_SET
     else:
-        st.last_gga_time = f[0]
-    sats = atoi(f[6])
+        st.last_gga_time = f0
+    f6 = f[6]
+    sats = _int(f6)
     new["used_count"] = sats
-    new["quality"], new["gga_sats"] = max(quality, 0), sats if f[6] else None
-    mask = _timed(st, f[0], mask)
+    new["quality"] = quality if quality > 0 else 0
+    new["gga_sats"] = sats if f6 else None
+    mask = _timed(st, f0, mask)
     pos = latlon(f[1], f[2], f[3], f[4])
     if pos is not None:
         new["lat"], new["lon"] = pos
-        new["mode"] = MODE_2D
+        mode = MODE_2D
         mask |= LATLON_SET
-        sep = fnum(f[10]) if f[10] else None
-        if sep is not None:
-            new["geoid_sep"] = sep
+        if f[10]:
+            sep = fnum(f[10])
+            if sep is not None:
+                new["geoid_sep"] = sep
         if f[8]:
             alt = fnum(f[8])
             if alt is not None:
                 new["alt_msl"] = alt
             mask |= ALTITUDE_SET
             if sats >= 4:
-                new["mode"] = MODE_3D
-        if sats < 3:
-            new["mode"] = MODE_NO_FIX
+                mode = MODE_3D
+        new["mode"] = MODE_NO_FIX if sats < 3 else mode
     else:
         new["mode"] = MODE_NO_FIX
     mask |= MODE_SET
@@ -121,27 +130,31 @@ def gga(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
 def rmc(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
     status = f[1][:1]
     mask = 0
-    if status not in ("A", "D"):
+    if status != "A" and status != "D":
         new["mode"] = MODE_NO_FIX
         if not f[0] or not f[8]:
             mask |= st.time_lost()
         return mask | STATUS_SET | MODE_SET
-    if f[0] and n > 8 and f[8]:
-        ok_time = st.merge_hhmmss(f[0])
+    f0 = f[0]
+    if f0 and n > 8 and f[8]:
+        ok_time = st.merge_hhmmss(f0)
         date = ddmmyy(f[8])
         if ok_time and date is not None:
             st.set_date(date)
             mask |= TIME_SET
-            st.register_time(f[0])
+            st.last_frac = st.this_frac  # Session.register_time, inline
+            st.this_frac = fnum(f0)
+            st.latch_frac = True
     pos = latlon(f[2], f[3], f[4], f[5])
     if pos is not None:
         new["lat"], new["lon"] = pos
         newstatus = STATUS_DGPS if status == "D" else STATUS_GPS
         mask |= LATLON_SET
-        if st.lastfix.mode <= MODE_2D:
+        last_mode = st.lastfix.mode
+        if last_mode <= MODE_2D:
             new["mode"] = MODE_2D
             mask |= MODE_SET
-        elif st.lastfix.mode == MODE_3D:
+        elif last_mode == MODE_3D:
             new["mode"] = MODE_3D
             mask |= MODE_SET
     else:
@@ -163,7 +176,8 @@ def rmc(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
             mask |= MAGNETIC_TRACK_SET
     if n >= 11:
         newstatus = faa_status(f[11])
-    if st.sky_used() > 3 or st.fix.alt_hae is not None or st.fix.alt_msl is not None:
+    fix = st.fix
+    if st.sky.used_count > 3 or fix.alt_hae is not None or fix.alt_msl is not None:
         new["mode"] = MODE_3D
         mask |= MODE_SET
     new["status"] = newstatus
@@ -250,18 +264,19 @@ def vtg(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
 
 
 def gst(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
-    st.gst = tuple(fnum(f[i]) for i in range(1, 8))
+    st.gst = tuple(map(fnum, f[1:8]))
     st.gst_tod = hhmmss_ns(f[0])
     return GST_SET
 
 
 def zda(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
-    if not (f[0] and f[1] and f[2] and f[3]):
+    f0, f1, f2, f3 = f[0], f[1], f[2], f[3]
+    if not (f0 and f1 and f2 and f3):
         return 0
-    if not st.merge_hhmmss(f[0]):
+    if not st.merge_hhmmss(f0):
         return 0
-    d, m, y = atoi(f[1]), atoi(f[2]), atoi(f[3])
-    if not (1900 <= y <= 2200 and 1 <= m <= 12 and 1 <= d <= 31) or len(f[3]) != 4:
+    d, m, y = _int(f1), _int(f2), _int(f3)
+    if not (1900 <= y <= 2200 and 1 <= m <= 12 and 1 <= d <= 31) or len(f3) != 4:
         st.malformed += 1
         return 0
     st.set_date((y, m, d))

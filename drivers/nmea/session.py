@@ -16,6 +16,7 @@ before ``rollover_before_year`` move forward by 1024 weeks (GPS week-counter rol
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import lru_cache
 
 from drivers.nmea import handlers as h
 from drivers.nmea import proprietary as p
@@ -24,11 +25,13 @@ from drivers.nmea.fields import fnum, hhmmss_ns
 from drivers.nmea.fixstate import (
     CLEAR_IS,
     DOP_SET,
+    LATLON_SET,
     MODE_3D,
     MODE_NO_FIX,
     MODE_SET,
     REPORT_IS,
     SATELLITE_SET,
+    STATUS_SET,
     TIME_SET,
     Fix,
     merge,
@@ -36,19 +39,20 @@ from drivers.nmea.fixstate import (
 from drivers.nmea.sky import Sky
 
 ROLLOVER_S = 1024 * 7 * 86400
-# estimates a sentence may give itself (the error model then keeps them)
-_ESTIMATES = frozenset(("epx", "epy", "eps", "epc"))
 DAY_NS = 86_400 * 1_000_000_000
+_PAD = tuple(("",) * k for k in range(20))  # fields a short sentence is padded with
+# what merge() may change with no data in the sentence (a clear time, position, mode)
+_MERGED = TIME_SET | LATLON_SET | MODE_SET | STATUS_SET
 
 Handler = Callable[..., int]
 
 
 def _sky_gsa(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
-    return st.sky.gsa(talker, f[:n], new, st.latch_mode)
+    return st.sky.gsa(talker, f if len(f) == n else f[:n], new, st.latch_mode)
 
 
 def _sky_gsv(st: Session, talker: str, f: tuple[str, ...], new: dict, n: int) -> int:
-    mask, more = st.sky.gsv(talker, f[:n])
+    mask, more = st.sky.gsv(talker, f if len(f) == n else f[:n])
     st.gsx_more = more
     return mask
 
@@ -80,6 +84,7 @@ def _unnormed(fix: Fix) -> bool:
     return (t is not None and not 0.0 <= t < 360.0) or (m is not None and not 0.0 <= m < 360.0)
 
 
+@lru_cache(maxsize=64)
 def days_from_civil(y: int, m: int, d: int) -> int:
     """Days since 1970-01-01 of a (proleptic Gregorian) date; d may run past the month."""
     y -= m <= 2
@@ -118,7 +123,8 @@ class Session:
         self.quality: int | None = None  # this cycle's GGA: fix quality, satellites used
         self.gga_sats: int | None = None
         self._dist: tuple[tuple, float | None] = ((), None)
-        self._dops: tuple = ()  # the DOPs the error model last saw
+        self._dops: dict = {}  # the DOPs the error model last saw
+        self._unnormed = False  # a track the error model left outside 0-360 degrees
 
     # ------------------------------------------------------------ for handlers
     def merge_hhmmss(self, field: str) -> bool:
@@ -173,18 +179,17 @@ class Session:
         """A sentence's data and mask. The fix, the DOPs and the satellites used are not
         touched yet (see :meth:`apply`), so the previous epoch can still be reported."""
         entry = HANDLERS.get(kind)
-        n = len(fields)
         mask = 0
         new: dict = {}
-        self.latch_frac = False
-        self.gsx_more = False
+        self.latch_frac = self.gsx_more = False
         if entry is not None:
             handler, fewest, width = entry
+            n = len(fields)
             if n + 1 < fewest:
                 self.malformed += 1
             else:
                 if n < width:
-                    fields = fields + ("",) * (width - n)
+                    fields = fields + _PAD[width - n]
                 mask = handler(self, talker, fields, new, n)
         sky = self.sky
         if kind != "GSV":
@@ -192,13 +197,13 @@ class Session:
         if kind != "GSA":
             sky.last_gsa_talker = ""
         if mask & TIME_SET:
-            new["time_ns"] = self.time_ns()
+            tod = self.tod_ns
+            new["time_ns"] = None if self.date is None or tod is None else self.day * DAY_NS + tod
         if self.latch_frac and not self.gsx_more:
             this, last = self.this_frac, self.last_frac
             if this is None or last is None or abs(this - last) > 0.01:
                 mask |= CLEAR_IS
-        fix = self.fix
-        if (mask & MODE_SET and fix.mode == MODE_3D and new.get("mode", 0) != MODE_NO_FIX
+        if (mask & MODE_SET and self.fix.mode == MODE_3D and new.get("mode", 0) != MODE_NO_FIX
                 and self._had_altitude()):  # fmt: skip
             new["mode"] = MODE_3D  # do not drop a 3D fix to 2D (RMC says nothing of 3D)
         return mask, new
@@ -228,14 +233,16 @@ class Session:
             if sky.used_count != new["used_count"]:
                 sky.used_count = new["used_count"]
                 sky.changed = True
-        if merge(fix, mask, new):
+        if (new or mask & _MERGED) and merge(fix, mask, new):
             changed = True
         if mask & SATELLITE_SET and sky.view:
             sky.fill_dop()
-        dops = tuple(sky.dop.items())
-        if changed or dops != self._dops or new.keys() & _ESTIMATES or _unnormed(fix):
-            self._dops = dops
+        dop = sky.dop
+        # (of the estimates a sentence may give, only GBS and PGRME give epx/epy)
+        if changed or dop != self._dops or self._unnormed or "epx" in new or "epy" in new:
+            self._dops = dict(dop)
             error_model(self, new)
+            self._unnormed = _unnormed(self.fix)
 
     def _had_altitude(self) -> bool:
         last, old = self.lastfix, self.oldfix

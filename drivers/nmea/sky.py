@@ -155,8 +155,10 @@ class Sky:
             new["mode"] = mode
             if mode_set:
                 mask = MODE_SET
-            before = (self.used_prns, self.used_count, dict(self.dop))
+            prev_used, prev_count = self.used_prns, self.used_count  # (lists never mutated)
+            dop_changed = False
             if dops:
+                dop_changed = not dops.items() <= self.dop.items()
                 self.dop.update(dops)
                 mask |= DOP_SET
             if last_last == "" or (t == last_last and t != "N"):
@@ -166,7 +168,7 @@ class Sky:
             used = self.used_prns = self.used_prns + list(prns[: MAXCHANNELS - len(self.used_prns)])
             self.used_count = len(used)
             mask |= USED_IS
-            if before != (used, self.used_count, self.dop):
+            if dop_changed or prev_count != self.used_count or prev_used != used:
                 self.changed = True  # a GSA repeating the last one changes nothing
         if t == "P" and self.seen_gsa & _OTHERS:
             mask = 0

@@ -50,8 +50,10 @@ def mahalanobis_matrix(
     for c, ang in enumerate(angular):
         if ang:
             nu[..., c] = wrap(nu[..., c])
-    si = inv2(s)
-    return np.einsum("mki,kij,mkj->mk", nu, si, nu)
+    s00, s01, s10, s11 = s[:, 0, 0], s[:, 0, 1], s[:, 1, 0], s[:, 1, 1]
+    n0, n1 = nu[..., 0], nu[..., 1]
+    # nu' S^-1 nu with the closed-form inverse: (n0^2 s11 - n0 n1 (s01 + s10) + n1^2 s00) / det
+    return (n0 * (n0 * s11 - n1 * (s01 + s10)) + n1 * n1 * s00) / (s00 * s11 - s01 * s10)
 
 
 def nearest_neighbour(d2: np.ndarray, gate: float = CHI2_2DOF_99) -> np.ndarray:
@@ -77,7 +79,7 @@ def classify_unmatched(
     d2: np.ndarray, assoc: np.ndarray, new_chi2: float = CHI2_2DOF_999
 ) -> np.ndarray:
     """Boolean mask of unmatched observations far enough from every landmark to be new."""
-    far = np.all(d2 > new_chi2, axis=1) if d2.shape[1] else np.ones(d2.shape[0], dtype=bool)
+    far = (d2 > new_chi2).all(axis=1) if d2.shape[1] else np.ones(d2.shape[0], dtype=bool)
     return (assoc < 0) & far
 
 

@@ -38,6 +38,12 @@ from numerics.motion import motion, motion_jacobians
 
 HALF_PI = 0.5 * math.pi
 
+#: One step of a planar motion model in floats: the new pose ``(x, y, theta)``, the two
+#: entries of its state Jacobian that are not those of the identity (``F[0, 2]`` and
+#: ``F[1, 2]``: both models move the position by an amount that depends on the heading
+#: only) and the control Jacobian G (3x2) row by row.
+Step = tuple[float, float, float, float, float, float, float, float, float, float, float]
+
 
 @dataclass(frozen=True, slots=True)
 class AckermannGeometry:
@@ -75,10 +81,14 @@ class AckermannModel:
         self, xv: np.ndarray, u: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (f(xv, u), df/dxv (3x3), df/du (3x2)) for one step of ``dt`` seconds."""
+        return _arrays(self.step(float(xv[0]), float(xv[1]), float(xv[2]), float(u[0]),
+                                 float(u[1]), float(dt)))  # fmt: skip
+
+    def step(self, x: float, y: float, th: float, ve: float, steer: float, dt: float) -> Step:
+        """:meth:`predict` in floats (see :data:`Step`): what the filter calls 40 times a
+        second, without a numpy array per step."""
         g = self.geometry
         L, a, b, H = g.wheelbase_m, g.laser_ahead_m, g.laser_left_m, g.encoder_left_m
-        x, y, th = float(xv[0]), float(xv[1]), float(xv[2])
-        ve, steer = float(u[0]), float(u[1])
         t = math.tan(steer)
         dt_ds = 1.0 + t * t  # d tan / d steer
         den = 1.0 - t * H / L
@@ -92,21 +102,17 @@ class AckermannModel:
         dx = vc * (c - k * ax)
         dy = vc * (s + k * ay)
         dth = vc * k
-        out = np.array([x + dt * dx, y + dt * dy, th + dt * dth])
-        fx = np.array(
-            [
-                [1.0, 0.0, dt * vc * (-s - k * ay)],
-                [0.0, 1.0, dt * vc * (c - k * ax)],
-                [0.0, 0.0, 1.0],
-            ]
-        )
         # partials with respect to vc and to tan(steer) (through k = t / L)
-        d_vc = np.array([c - k * ax, s + k * ay, k]) * dt
-        d_k = np.array([-vc * ax, vc * ay, vc]) * dt
-        fu = np.empty((3, 2))
-        fu[:, 0] = d_vc * dvc_dve
-        fu[:, 1] = d_vc * dvc_ds + d_k * (dt_ds / L)
-        return out, fx, fu
+        v0, v1, v2 = (c - k * ax) * dt, (s + k * ay) * dt, k * dt
+        k0, k1, k2 = -vc * ax * dt, vc * ay * dt, vc * dt
+        dk = dt_ds / L
+        return (
+            x + dt * dx, y + dt * dy, th + dt * dth,
+            dt * vc * (-s - k * ay), dt * vc * (c - k * ax),
+            v0 * dvc_dve, v0 * dvc_ds + k0 * dk,
+            v1 * dvc_dve, v1 * dvc_ds + k1 * dk,
+            v2 * dvc_dve, v2 * dvc_ds + k2 * dk,
+        )  # fmt: skip
 
 
 class UnicycleModel:
@@ -120,6 +126,18 @@ class UnicycleModel:
         """Return (f(xv, u), df/dxv, df/du); ``dt`` is unused (u is already integrated)."""
         f, g = motion_jacobians(xv, u)
         return motion(xv, u), f, g
+
+    def step(self, x: float, y: float, th: float, d: float, dth: float, dt: float = 0.0) -> Step:
+        """:meth:`predict` in floats (see :data:`Step`)."""
+        xn, f, g = self.predict(np.array([x, y, th]), np.array([d, dth]), dt)
+        return (*map(float, xn), float(f[0, 2]), float(f[1, 2]), *map(float, g.ravel()))
+
+
+def _arrays(st: Step) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(f(xv, u), F, G) as arrays from a model's :data:`Step`."""
+    x, y, th, f02, f12, g00, g01, g10, g11, g20, g21 = st
+    fx = np.array([[1.0, 0.0, f02], [0.0, 1.0, f12], [0.0, 0.0, 1.0]])
+    return np.array([x, y, th]), fx, np.array([[g00, g01], [g10, g11], [g20, g21]])
 
 
 def observe(

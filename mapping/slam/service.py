@@ -133,8 +133,9 @@ class LandmarkSlam:
         )
         self.stats = SlamStats()
         self._t_ns: int | None = None
-        self._u = np.zeros(2)
+        self._u = (0.0, 0.0)
         self._q_nominal = np.diag([cfg.sigma_speed_mps**2, cfg.sigma_steer_rad**2])
+        self._q = (0.0, self._q_nominal)  # (dt, Q of a step of dt): dt rarely changes
         self._last_odom: Pose2D | None = None
 
     # ------------------------------------------------------------ prediction
@@ -153,8 +154,9 @@ class LandmarkSlam:
         if dt > self.config.max_dt_s:  # a gap: do not extrapolate the old control
             self.stats.skipped += 1
             dt = self.config.max_dt_s
-        q = self._q_nominal * (self.config.nominal_dt_s / dt)
-        self.ekf.predict(self._u, dt, q)
+        if self._q[0] != dt:
+            self._q = (dt, self._q_nominal * (self.config.nominal_dt_s / dt))
+        self.ekf.predict(self._u, dt, self._q[1])
 
     def on_control(self, msg: VehicleControl) -> PoseEstimate:
         """Dead-reckoning sample of the car: predict to its stamp, then hold it."""
@@ -167,7 +169,7 @@ class LandmarkSlam:
         """Array-level :meth:`on_control` (no message objects; for benches)."""
         self._advance(int(stamp_ns))
         if math.isfinite(speed_mps) and math.isfinite(steering_rad):
-            self._u = np.array([speed_mps, steering_rad], dtype=float)
+            self._u = (float(speed_mps), float(steering_rad))
         else:
             self.stats.skipped += 1
         self.stats.controls += 1
@@ -252,8 +254,9 @@ class LandmarkSlam:
             cand = np.nonzero(dist < c.max_range_m + 10.0)[0]
         d2 = np.zeros((len(z), 0))
         assoc = np.full(len(z), -1, dtype=int)
+        zp = hv = hm = None
         if len(cand):
-            zp, _, _, s = ekf.predict_observations(cand)
+            zp, hv, hm, s = ekf.predict_observations(cand)
             d2 = mahalanobis_matrix(z, zp, s)
             if c.association == "jcbb":
                 near = np.nonzero((d2 < c.gate_chi2).any(axis=0))[0]
@@ -267,7 +270,8 @@ class LandmarkSlam:
         self.stats.ambiguous += int(np.count_nonzero((assoc < 0) & ~new_mask))
         matched = assoc >= 0
         if matched.any():
-            ekf.update(z[matched], cand[assoc[matched]])
+            j = assoc[matched]
+            ekf.update(z[matched], cand[j], (zp[j], hv[j], hm[j]))  # type: ignore[index]
         self.stats.matched += int(np.count_nonzero(matched))
         n_new = 0
         if new_mask.any():
