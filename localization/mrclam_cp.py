@@ -60,11 +60,13 @@ def run_cp(
     config: RangeBearingCPConfig | None = None,
     tick_s: float = 0.1,
     end_s: float | None = None,
+    start_s: float | None = None,
 ) -> dict[int, CpTrack]:
-    """CP over ``run`` (seconds on the data's clock; ``end_s`` cuts the run)."""
+    """CP over ``run`` (seconds on the data's clock; ``start_s`` and ``end_s`` cut it:
+    the robots start knowing nothing at ``start_s``)."""
     cfg = config or RangeBearingCPConfig()
     ids = sorted(run.robots if robots is None else robots)
-    t0 = run.start_s
+    t0 = run.start_s if start_s is None else max(run.start_s, start_s)
     t1 = run.end_s if end_s is None else min(run.end_s, end_s)
     cps = {r: RangeBearingCP(cfg, run.landmarks, r) for r in ids}
     # Non-command events: (t, order, robot, payload). order 0: tick, 1: observations.
@@ -73,11 +75,11 @@ def run_cp(
     for r in ids:
         events += [(float(t), 0, r, None) for t in ticks]
         for t, g in _groups(run.robots[r].measurements):
-            if t <= t1:
+            if t0 <= t <= t1:
                 events.append((t, 1, r, g))
     events.sort(key=lambda e: (e[0], e[1], e[2]))
     odo = {r: run.robots[r].odometry for r in ids}
-    nxt = dict.fromkeys(ids, 0)
+    nxt = {r: max(0, int(np.searchsorted(odo[r][:, 0], t0 - cfg.command_lag_s)) - 1) for r in ids}
     published: dict[int, object] = {}  # robot -> PeerBox, or a snapshot to compute one from
     snaps: dict[int, list] = {r: [] for r in ids}
     n_obs = dict.fromkeys(ids, 0)

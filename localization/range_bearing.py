@@ -24,9 +24,9 @@ matters when the range is unknown (here it is always measured). It is sound for 
 input box (checked in tests/test_range_bearing.py against sampled feasible points, the
 ``IV`` contractor ``contractors.contract_range_bearing`` and Codac's ``CtcPolar``).
 
-:func:`observation_heading` gives the observer's heading that a bearing implies from a
-position box, theta = atan2(ay - oy, ax - ox) - beta, as one interval on some branch (no
-meet with a prior): what a lost heading is re-based on (``localization.cp_rb_solve``).
+A heading box of any width is fine: with the whole circle the bearing step leaves it
+as it is and the products give the annulus's box; ``localization.cp_rb_solve`` cuts
+such a heading into sectors so that the bearing narrows it again.
 """
 
 from __future__ import annotations
@@ -96,13 +96,3 @@ def contract_observation(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if bad.any():
         out[:, 0, bad], out[:, 1, bad] = np.inf, -np.inf
     return out, bad
-
-
-def observation_heading(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The observer's heading interval implied by each observation of ``b`` (7, 2, m)
-    from its position box alone: atan2(ay - oy, ax - ox) - beta on one branch (width
-    >= 2 pi, i.e. no information, when the relative box holds the origin)."""
-    dxl, dxh = K.sub(b[AX, 0], b[AX, 1], b[OX, 0], b[OX, 1])
-    dyl, dyh = K.sub(b[AY, 0], b[AY, 1], b[OY, 0], b[OY, 1])
-    bl, bh = K.bearing(dyl, dyh, dxl, dxh)
-    return K.sub(bl, bh, b[BETA, 0], b[BETA, 1])
