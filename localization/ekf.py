@@ -17,14 +17,16 @@ Message-level API::
 
 :class:`IntegrityMonitor` takes the EKF estimate and the CP box of the same step, flags
 an integrity alarm when the estimate leaves the box, and offers the estimate clipped to
-the box (a guaranteed-consistent point).
+the box (a guaranteed-consistent point). :func:`integrity_counts` scores a whole EKF
+track against a track of guaranteed boxes and the truth (alarms, false alarms, misses;
+definitions in its docstring).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -41,6 +43,7 @@ from msgs import (
     wrap_angle,
 )
 from numerics import ekf
+from numerics.angles import wrap
 
 
 @dataclass(frozen=True)
@@ -220,3 +223,118 @@ class IntegrityMonitor:
     @property
     def alarm_rate(self) -> float:
         return len(self.alarms) / self.checks if self.checks else 0.0
+
+
+class _Track(Protocol):
+    t: np.ndarray  # (n,) seconds, non-decreasing
+    mean: np.ndarray  # (n, 3) x, y, theta
+    cov: np.ndarray  # (n, 3, 3)
+
+
+@dataclass(frozen=True)
+class BoxTrack:
+    """Guaranteed boxes over time: ``t`` (m,), ``lo`` and ``hi`` (m, 3) of x, y, theta.
+    A heading interval may lie on any 2 pi branch; one 2 pi wide or wider holds every
+    heading. A box with lo > hi or a NaN in any component is empty."""
+
+    t: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+def _angles_in(th: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Angle th inside [lo, hi] modulo 2 pi."""
+    half = 0.5 * (hi - lo)
+    return (half >= math.pi) | (np.abs(wrap(th - 0.5 * (lo + hi))) <= half)
+
+
+def _angles_meet(lo1, hi1, lo2, hi2) -> np.ndarray:
+    """[lo1, hi1] and [lo2, hi2] share an angle modulo 2 pi (for widths < 2 pi, the
+    wrapped distance of the centres is at most the sum of the half widths)."""
+    h1, h2 = 0.5 * (hi1 - lo1), 0.5 * (hi2 - lo2)
+    d = np.abs(wrap(0.5 * (lo1 + hi1) - 0.5 * (lo2 + hi2)))
+    return (h1 >= math.pi) | (h2 >= math.pi) | (d <= h1 + h2)
+
+
+def integrity_counts(
+    track: _Track,
+    boxes: BoxTrack,
+    truth: tuple[np.ndarray, np.ndarray],
+    n_sigma: float = 3.0,
+) -> dict[str, int]:
+    """Integrity of an EKF track against guaranteed (CP) boxes, scored with the truth.
+
+    At every box instant t_k (boxes.t) the EKF is taken at its latest row at or before
+    t_k (instants before its first row are counted as ``no_estimate`` and skipped; empty
+    boxes as ``empty_boxes``). ``truth`` = (pose (m, 3), has_truth (m,)) at boxes.t, as
+    ``RobotRun.truth_at(boxes.t)`` returns it. With E_k = the EKF's n-sigma region, the
+    box mean +/- n_sigma sqrt(diag P) (heading modulo 2 pi), and B_k the CP box:
+
+    - ``alarms``: E_k and B_k are disjoint (some component, heading modulo 2 pi): the
+      EKF claims, at n sigma, a pose that the guaranteed box excludes.
+    - ``estimate_alarms``: the EKF mean lies outside B_k (:class:`IntegrityMonitor`'s
+      alarm; weaker: the mean may leave the box while E_k still overlaps it).
+    - Where the truth exists (``scored`` instants): ``ekf_misses``: truth outside E_k;
+      ``box_misses``: truth outside B_k; ``false_alarms``: an alarm while the truth was
+      inside E_k (the EKF was right, so the box, disjoint from E_k, missed the truth);
+      ``true_alarms``: an alarm while the truth was outside E_k; ``missed_alarms``: no
+      alarm while the truth was outside E_k (an EKF failure the monitor did not see);
+      ``estimate_false_alarms``: an estimate alarm while the truth was inside E_k.
+
+    Every count is an integer number of box instants.
+    """
+    bt = np.asarray(boxes.t, float)
+    lo, hi = np.asarray(boxes.lo, float), np.asarray(boxes.hi, float)
+    pose, has = np.asarray(truth[0], float), np.asarray(truth[1], bool)
+    if not (lo.shape == hi.shape == (len(bt), 3) and pose.shape == (len(bt), 3)):
+        raise ValueError("boxes.lo, boxes.hi and the truth must be (m, 3) for m box instants")
+    tt = np.asarray(track.t, float)
+    i = np.searchsorted(tt, bt, side="right") - 1
+    have = i >= 0
+    empty = np.isnan(lo).any(axis=1) | np.isnan(hi).any(axis=1) | (lo > hi).any(axis=1)
+    use = have & ~empty
+    i = np.clip(i, 0, len(tt) - 1)
+    m = np.asarray(track.mean, float)[i]
+    r = n_sigma * np.sqrt(np.maximum(np.diagonal(np.asarray(track.cov, float)[i], 0, 1, 2), 0.0))
+    elo, ehi = m - r, m + r
+    meet = (
+        (elo[:, 0] <= hi[:, 0])
+        & (lo[:, 0] <= ehi[:, 0])
+        & (elo[:, 1] <= hi[:, 1])
+        & (lo[:, 1] <= ehi[:, 1])
+        & _angles_meet(elo[:, 2], ehi[:, 2], lo[:, 2], hi[:, 2])
+    )
+    mean_in = (
+        (lo[:, 0] <= m[:, 0])
+        & (m[:, 0] <= hi[:, 0])
+        & (lo[:, 1] <= m[:, 1])
+        & (m[:, 1] <= hi[:, 1])
+        & _angles_in(m[:, 2], lo[:, 2], hi[:, 2])
+    )
+    ekf_ok = (np.abs(pose[:, :2] - m[:, :2]) <= r[:, :2]).all(axis=1) & (
+        np.abs(wrap(pose[:, 2] - m[:, 2])) <= r[:, 2]
+    )
+    box_ok = (
+        (lo[:, :2] <= pose[:, :2]).all(axis=1)
+        & (pose[:, :2] <= hi[:, :2]).all(axis=1)
+        & _angles_in(pose[:, 2], lo[:, 2], hi[:, 2])
+    )
+    alarm, est_alarm, scored = use & ~meet, use & ~mean_in, use & has
+
+    def n(a: np.ndarray) -> int:
+        return int(np.count_nonzero(a))
+
+    return {
+        "checked": n(use),
+        "no_estimate": n(~have),
+        "empty_boxes": n(have & empty),
+        "scored": n(scored),
+        "alarms": n(alarm),
+        "estimate_alarms": n(est_alarm),
+        "false_alarms": n(scored & alarm & ekf_ok),
+        "true_alarms": n(scored & alarm & ~ekf_ok),
+        "missed_alarms": n(scored & ~alarm & ~ekf_ok),
+        "estimate_false_alarms": n(scored & est_alarm & ekf_ok),
+        "ekf_misses": n(scored & ~ekf_ok),
+        "box_misses": n(scored & ~box_ok),
+    }

@@ -11,5 +11,6 @@ imported by the algorithm packages (fusion, mapping, localization) only.
 
 - :mod:`numerics.angles`: wrap to (-pi, pi], scalar and array;
 - :mod:`numerics.motion`: eq. (1) wheels <-> step, eq. (2) pose step, F and G Jacobians;
-- :mod:`numerics.ekf`: eq. (4) covariance prediction, innovation, NIS, Joseph update.
+- :mod:`numerics.ekf`: eq. (4) covariance prediction, innovation, NIS, Joseph update;
+- :mod:`numerics.rangebearing`: range and bearing of a point from a pose, Jacobians.
 """

@@ -1,0 +1,105 @@
+"""Covariance intersection (CI) of a prior with a measurement whose error may be
+correlated with the prior in an unknown way (Julier & Uhlmann, "A non-divergent
+estimation algorithm in the presence of unknown correlations", ACC 1997).
+
+With prior (x, P) and a measurement z = h(x) + e, Jacobian H (m x n) and noise R
+(which here holds the peer robot's covariance as well), CI fuses the informations
+with weights w and 1 - w:
+
+    P+^-1 = w P^-1 + (1 - w) H^T R^-1 H,                                  (CI)
+
+which is the Kalman update with the prior covariance P / w and the noise R / (1 - w)
+(the same algebra as numerics.ekf, so the Joseph form applies). The result is
+consistent whatever the correlation between the two, for every w in (0, 1]. w = 1
+ignores the measurement.
+
+Choice of w: minimise det P+ (default) or trace P+.
+
+- det: with A = H P H^T and lambda_k the eigenvalues of R^-1 A (k = 1..m), Sylvester's
+  determinant identity gives det P+^-1 = det P^-1 w^(n-m) prod_k (lambda_k + w (1 -
+  lambda_k)), log-concave in w. Its derivative vanishes at
+  (n - m) / w + sum_k (1 - lambda_k) / (lambda_k + w (1 - lambda_k)) = 0,
+  found by bisection; the optimum is w = 1 (no update) when sum_k lambda_k <= n, i.e.
+  when the measurement carries too little information to beat the prior alone.
+- trace: golden-section search of trace P+(w) on [1e-3, 1]; so is either criterion
+  judged on a leading block of P+ only (the pose, without nuisance states).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from numerics import ekf
+
+
+def ci_weight(
+    p: np.ndarray, h: np.ndarray, r: np.ndarray, criterion: str = "det", block: int | None = None
+) -> float:
+    """The CI weight w in (0, 1] of the prior ``p`` (1: the measurement adds nothing).
+
+    ``block``: judge the criterion on the leading block P+[:block, :block] only (e.g. the
+    pose of a state that also holds nuisance biases), by golden-section search.
+    """
+    if criterion not in ("det", "trace"):
+        raise ValueError(f"criterion must be 'det' or 'trace', got {criterion!r}")
+    if block is not None and block < p.shape[0]:
+        measure = np.linalg.det if criterion == "det" else np.trace
+        return _golden(lambda w: float(measure(ci_posterior(p, h, r, w)[:block, :block])))
+    if criterion == "trace":
+        return _golden(lambda w: float(np.trace(ci_posterior(p, h, r, w))))
+    n, m = p.shape[0], h.shape[0]
+    lam = np.maximum(np.linalg.eigvals(np.linalg.solve(r, h @ p @ h.T)).real, 0.0)
+    if lam.sum() <= n:
+        return 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        w = 0.5 * (lo + hi)
+        g = (n - m) / w + sum((1.0 - lk) / (lk + w * (1.0 - lk)) for lk in lam)
+        lo, hi = (w, hi) if g > 0.0 else (lo, w)
+    return 0.5 * (lo + hi)
+
+
+def ci_posterior(p: np.ndarray, h: np.ndarray, r: np.ndarray, w: float) -> np.ndarray:
+    """P+ of (CI) for the weight w in (0, 1] (P itself at w = 1)."""
+    if w >= 1.0:
+        return p
+    pw = p / w
+    ph, _, s_inv = ekf.innovation(pw, h, r / (1.0 - w))
+    return pw - ph @ s_inv @ ph.T
+
+
+def ci_update(
+    x: np.ndarray, p: np.ndarray, nu: np.ndarray, h: np.ndarray, r: np.ndarray, w: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(x+, P+) of (CI) with innovation ``nu``, in Joseph form; (x, P) at w = 1."""
+    if w >= 1.0:
+        return x, p
+    pw, rw = p / w, r / (1.0 - w)
+    ph, _, s_inv = ekf.innovation(pw, h, rw)
+    x, p = ekf.joseph_update(x, pw, nu, h, rw, ph, s_inv)
+    return x, 0.5 * (p + p.T)
+
+
+def _golden(f) -> float:
+    """Minimiser of f on [1e-3, 1] by golden-section search (f unimodal there); 1 when f
+    does not decrease away from 1 or the search does not beat f(1)."""
+    f1 = f(1.0)
+    if f(1.0 - 1e-3) >= f1:
+        return 1.0
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    lo, hi = 1e-3, 1.0
+    c, d = hi - g * (hi - lo), lo + g * (hi - lo)
+    fc, fd = f(c), f(d)
+    for _ in range(30):
+        if fc < fd:
+            hi, d, fd = d, c, fc
+            c = hi - g * (hi - lo)
+            fc = f(c)
+        else:
+            lo, c, fc = c, d, fd
+            d = lo + g * (hi - lo)
+            fd = f(d)
+    w = 0.5 * (lo + hi)
+    return w if f(w) < f1 else 1.0
