@@ -88,9 +88,15 @@ class RangeBearingCPConfig:
     #: A peer's published box is widened by these times its age.
     peer_speed_mps: float = 0.1
     peer_yaw_rate_radps: float = 0.7
+    #: A peer's box is not used for this long after the peer weakened its guarantee
+    #: (relaxed, reinit, lost): two windows, for its window to hold only fresh data.
+    peer_quarantine_s: float = 5.0
     # -- solver (localization.cp_rb_solve) --
     #: q: observations of the window that may break their bounds.
     outliers: int = 1
+    #: On an empty window, up to this many more are voted out (the prior kept) before
+    #: the prior is dropped (localization.cp_rb, "graceful failure").
+    max_extra_outliers: int = 3
     window_s: float = 2.5
     max_states: int = 12
     iterations: int = 2

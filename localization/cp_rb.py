@@ -15,12 +15,16 @@ their stamps. Seconds on the data's own clock, metres, radians.
 
 **Graceful failure.** A solve that comes out empty proves that more than q observations
 of the window (or a prior built from an earlier window) broke their bounds. Then, in
-turn: the solve is repeated without the previous solution's boxes, then without the
-prior (re-initialised from the whole plane and an unknown heading: the window's own
-observations only); if that is still empty the robot is **lost**: the window is
-cleared, the box is the whole plane (status ``lost``), and the next observations narrow
-it again. Every fallback is recorded in ``events``; the observations found inconsistent
-are named in ``outliers``. A box is never silently wrong beyond the stated guarantee.
+turn: the solve is repeated without the previous solution's boxes (status ``cold``);
+then with up to ``max_extra_outliers`` more observations voted out but the prior kept
+(``relaxed``: a burst of misread barcodes must not overrule what the window's past
+established); then without the prior, re-initialised from the whole plane and an
+unknown heading, the window's own observations only (``reinit``); if that is still
+empty the robot is **lost**: the window is cleared, the box is the whole plane, and the
+next observations narrow it again. Every fallback is recorded in ``events`` with its
+time; the observations found inconsistent are named in ``outliers``; a box published
+while ``relaxed``, ``reinit`` or ``lost`` carries only the weaker guarantee its status
+says, and peers may ignore it (``last_alert``).
 
 Usage (time-ordered calls)::
 
@@ -64,7 +68,7 @@ class RBBox:
     x: tuple[float, float]
     y: tuple[float, float]
     th: tuple[float, float]
-    status: str = "ok"  # ok | relaxed | reinit | lost | unknown
+    status: str = "ok"  # ok | cold | relaxed | reinit | lost | unknown
 
     def contains(self, x: float, y: float, th: float) -> bool:
         """Whether the pose (heading modulo 2 pi) is inside."""
@@ -93,12 +97,14 @@ class Observation:
 
 @dataclass(frozen=True)
 class PeerBox:
-    """A peer's published box with its stamp."""
+    """A peer's published box with its stamp, and when the peer last had to weaken its
+    guarantee (relaxed, reinit or lost: its box may then be wrong)."""
 
     t: float
     x: tuple[float, float]
     y: tuple[float, float]
     th: tuple[float, float]
+    alert_t: float = -np.inf
 
 
 @dataclass
@@ -130,6 +136,8 @@ class RangeBearingCP:
         self._named: set[tuple[float, str, int]] = set()
         self.events: list[tuple[float, str]] = []
         self.solves = 0
+        #: when the guarantee last had to be weakened (relaxed, reinit, lost)
+        self.last_alert = -_INF
         self.skipped: dict[str, int] = {}
         self._heard: list[tuple[int, float, float, PeerBox]] = []  # seen by peers, not yet used
 
@@ -180,11 +188,17 @@ class RangeBearingCP:
             box.th[1] + gt,
         )
 
+    def _trusted(self, t: float, box: PeerBox) -> bool:
+        ok = t - box.alert_t >= self.cfg.peer_quarantine_s
+        if not ok:
+            self.skipped["peer_box_quarantined"] = self.skipped.get("peer_box_quarantined", 0) + 1
+        return ok
+
     def peer_seen(
         self, t: float, peer: int, r: float, b: float, box: PeerBox
     ) -> Observation | None:
         """This robot sees ``peer``, whose last published box is ``box``."""
-        if not self._valid(r, b):
+        if not self._valid(r, b) or not self._trusted(t, box):
             return None
         return Observation(
             t, "peer_seen", int(peer), True, self._aged(t, box), self._rho(r), self._beta(b)
@@ -192,7 +206,7 @@ class RangeBearingCP:
 
     def seen_by(self, t: float, peer: int, r: float, b: float, box: PeerBox) -> Observation | None:
         """``peer`` (box ``box``, with its heading) sees this robot at ``r``, ``b``."""
-        if not self._valid(r, b):
+        if not self._valid(r, b) or not self._trusted(t, box):
             return None
         aged = list(self._aged(t, box))
         g = self.cfg.bearing_common_rad  # the peer's camera heading: its heading +- this
@@ -282,12 +296,12 @@ class RangeBearingCP:
             arr["slack"], arr["cap"], hard[0], hard[1], hard[2], hard[3], b, at, own,
         )  # fmt: skip
 
-    def _run(self, warm: bool, prior: bool) -> WindowSolution:
+    def _run(self, warm: bool, prior: bool, q: int) -> WindowSolution:
         c = self.cfg
         p = self._problem(warm, prior)
         self.solves += 1
         sol = solve_window(
-            p, c.outliers, 0.5 * c.heading_transient_rad, c.iterations, c.tol,
+            p, q, 0.5 * c.heading_transient_rad, c.iterations, c.tol,
             c.bearing_common_rad, c.heading_piece_rad, c.max_pieces, c.heading_sectors,
         )  # fmt: skip
         if not sol.empty and sol.rebased:
@@ -295,13 +309,22 @@ class RangeBearingCP:
         return sol
 
     def _solve(self) -> None:
+        """Solve the window; on an empty result fall back in turn (module doc): without
+        the previous solution's boxes ("cold"), voting out up to ``max_extra_outliers``
+        more observations but keeping the prior ("relaxed"), without the prior
+        ("reinit"), and else "lost"."""
+        c = self.cfg
         t = self._states[-1].t
-        sol = self._run(warm=True, prior=True)
-        status = "ok"
+        q = c.outliers
+        sol, status = self._run(True, True, q), "ok"
         if sol.empty:
-            sol, status = self._run(warm=False, prior=True), "relaxed"
+            sol, status = self._run(False, True, q), "cold"
+        extra = 1
+        while sol.empty and extra <= c.max_extra_outliers:
+            sol, status = self._run(False, True, q + extra), "relaxed"
+            extra += 1
         if sol.empty:
-            sol, status = self._run(warm=False, prior=False), "reinit"
+            sol, status = self._run(False, False, q), "reinit"
             if not sol.empty:
                 self._prior = _unknown()
         self._name(sol)
@@ -312,9 +335,12 @@ class RangeBearingCP:
             self._prior = _unknown()
             self._sol = None
             self.status = "lost"
+            self.last_alert = t
             return
         if status != "ok":
             self.events.append((t, status))
+        if status in ("relaxed", "reinit"):
+            self.last_alert = t
         if sol.rebased:
             self.events.append((t, "rebased"))
         self._sol = sol
@@ -360,7 +386,7 @@ class RangeBearingCP:
             self.status,
         )
 
-    def snapshot(self) -> tuple[float, float, np.ndarray, StepIntegral, str] | None:
+    def snapshot(self) -> tuple[float, float, np.ndarray, StepIntegral, str, float] | None:
         """What :func:`rb_predict.predict_boxes` needs to compute the box at the latest
         integrated instant later, in bulk (for scoring many instants)."""
         ref = self.latest()
@@ -368,4 +394,4 @@ class RangeBearingCP:
             return None
         t0, theta0, b = ref
         st = self.odo.peek() if self.odo.t is not None and self.odo.t > t0 else StepIntegral()
-        return (self.odo.t, theta0, b, st, self.status)
+        return (self.odo.t, theta0, b, st, self.status, self.last_alert)

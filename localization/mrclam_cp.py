@@ -96,9 +96,11 @@ def run_cp(
         p = published.get(r)
         if p is None or isinstance(p, PeerBox):
             return p
-        t, theta0, b, st, _ = p
+        t, theta0, b, st, _, alert = p
         out = predict_boxes(b[None], np.array([theta0]), [st], cfg)[0]
-        box = PeerBox(t, (out[0, 0], out[1, 0]), (out[0, 1], out[1, 1]), (out[0, 2], out[1, 2]))
+        box = PeerBox(
+            t, (out[0, 0], out[1, 0]), (out[0, 1], out[1, 1]), (out[0, 2], out[1, 2]), alert
+        )
         published[r] = box
         return box
 
