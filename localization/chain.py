@@ -85,24 +85,13 @@ def chain_k(
 def _widen_k(lo: np.ndarray, hi: np.ndarray, n: int, dl, dh) -> tuple[np.ndarray, np.ndarray]:
     """Bounds widened by the prefix sums' rounding error (module doc): each bound is one
     measurement plus or minus a sum of at most n increments, so its error is below
-    (n + 4) eps (2 sum|d| + |bound|), taken four times."""
+    (n + 4) eps (2 sum|d| + |bound|); taken four times, which also covers the rounding
+    of the widening itself."""
     mag = float(np.max(np.sum(np.abs(dl) + np.abs(dh), axis=-1), initial=0.0))
     k = 4.0 * (n + 4) * _EPS
+    g = k * 2.0 * mag + 1e-300
     with np.errstate(invalid="ignore", over="ignore"):
-        return down(lo - (k * (2.0 * mag + np.abs(lo)) + 1e-300)), up(
-            hi + (k * (2.0 * mag + np.abs(hi)) + 1e-300)
-        )
-
-
-def _guard_k(n: int, dl, dh, ml, mh) -> float:
-    """Bound of the prefix sums' rounding error (see the module doc), over the batch."""
-    mag = float(np.max(np.sum(np.abs(dl) + np.abs(dh), axis=-1), initial=0.0))
-    with np.errstate(invalid="ignore"):
-        big = max(
-            float(np.max(np.abs(ml), initial=0.0, where=np.isfinite(ml))),
-            float(np.max(np.abs(mh), initial=0.0, where=np.isfinite(mh))),
-        )
-    return 4.0 * (n + 4) * _EPS * (mag + big) + 1e-300
+        return lo - (g + k * np.abs(lo)), hi + (g + k * np.abs(hi))
 
 
 def relaxed_chain_at(
@@ -120,26 +109,15 @@ def relaxed_chain_at(
     (lo, hi), empty (lo > hi) where nothing is consistent."""
     hl, hh = hard
     dl, dh = d
-    n, m = hl.shape[-1], at.shape[0]
+    m = at.shape[0]
     lo, hi = chain_k(hl, hh, dl, dh)
     lo, hi = np.maximum(lo, hl), np.minimum(hi, hh)
     if m <= q:
         return lo, hi
-    ml, mh = meas
-    s_lo, s_hi = _prefix_k(dl, dh)
-    fwd = np.arange(n)[None, :] >= at[:, None]  # (m, n)
-    sj_lo, sj_hi = s_lo[..., at][..., :, None], s_hi[..., at][..., :, None]
-    sk_lo, sk_hi = s_lo[..., None, :], s_hi[..., None, :]
-    with np.errstate(invalid="ignore"):
-        p_lo = ml[..., :, None] + np.where(fwd, sk_lo - sj_lo, sk_hi - sj_hi)
-        p_hi = mh[..., :, None] + np.where(fwd, sk_hi - sj_hi, sk_lo - sj_lo)
-    p_lo = np.where(np.isnan(p_lo), np.inf, p_lo)  # empty measurements stay empty
-    p_hi = np.where(np.isnan(p_hi), -np.inf, p_hi)
+    p_lo, p_hi = projections(meas, at, d)  # rounded outward; empties stay empty
     r_lo = np.partition(p_lo, m - 1 - q, axis=-2)[..., m - 1 - q, :]  # (q+1)-th largest lo
     r_hi = np.partition(p_hi, q, axis=-2)[..., q, :]  # (q+1)-th smallest upper bound
-    fin = np.isfinite(ml) & np.isfinite(mh)
-    g = _guard_k(n, dl, dh, ml[fin], mh[fin])
-    return np.maximum(lo, down(r_lo - g)), np.minimum(hi, up(r_hi + g))
+    return np.maximum(lo, r_lo), np.minimum(hi, r_hi)
 
 
 def relaxed_chain(m: IV, valid: np.ndarray, d: IV, q: int) -> tuple[IV, np.ndarray]:

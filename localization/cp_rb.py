@@ -49,6 +49,7 @@ from localization.velocity_odometry import (
     CommandIntegrator,
     StepBounds,
     StepIntegral,
+    combine,
     predict_boxes,
     step_bounds,
 )
@@ -113,6 +114,7 @@ class _State:
     theta: float  # commanded heading at t
     step: StepBounds | None  # from the previous state
     obs: list[Observation] = field(default_factory=list)
+    raw: StepIntegral | None = None  # the commands' integral from the previous state
 
 
 class RangeBearingCP:
@@ -235,16 +237,21 @@ class RangeBearingCP:
             self._states[-1].obs.extend(obs)
         else:
             step = step_bounds(st, self.cfg) if self._states else None
-            self._states.append(_State(float(t), self.odo.heading, step, obs))
-        self._trim()
-        self._solve()
+            self._states.append(_State(float(t), self.odo.heading, step, obs, st))
+        solved = 0 if self._sol is None else self._sol.x.shape[1]
+        due = self._sol is None or t - self._states[solved - 1].t >= self.cfg.solve_period_s
+        if due:
+            self._trim()
+            self._solve()
         return self.box()
 
     def _trim(self) -> None:
         c, s = self.cfg, self._states
         while len(s) > c.max_states or (len(s) > 2 and s[-1].t - s[0].t > c.window_s):
             sol = self._sol
-            if sol is not None and sol.x.shape[1] >= 2:
+            if sol is not None and sol.x.shape[1] < 2:
+                break  # state 1 not solved yet: keep state 0 until it is
+            if sol is not None:
                 # state 1's solved box holds what the window knew about state 0
                 self._prior = np.stack(
                     [sol.x[:, 1], sol.y[:, 1], sol.th[:, 1], sol.c[:, 1]], axis=1
@@ -255,7 +262,7 @@ class RangeBearingCP:
             else:
                 self._prior = _unknown()
             del s[0]
-            s[0].step = None
+            s[0].step, s[0].raw = None, None
 
     def _problem(self, warm: bool, prior: bool) -> WindowProblem:
         s = self._states
@@ -357,26 +364,28 @@ class RangeBearingCP:
                     self.outliers.append(key)
 
     # -- outputs -------------------------------------------------------------------
-    def latest(self) -> tuple[float, float, np.ndarray] | None:
-        """(t, commanded heading, (2, 4) box x, y, th, c) of the latest solved state."""
+    def latest(self) -> tuple[float, float, np.ndarray, StepIntegral] | None:
+        """(t, commanded heading, (2, 4) box x, y, th, c) of the latest solved state,
+        and the commands' integral from it to the latest integrated instant."""
         if self._sol is None or not self._states:
             return None
         s = self._sol
         k = s.x.shape[1] - 1
-        return (
-            self._states[k].t,
-            self._states[k].theta,
-            np.stack([s.x[:, k], s.y[:, k], s.th[:, k], s.c[:, k]], axis=1),
-        )
+        since = StepIntegral()
+        for st in self._states[k + 1 :]:  # states not solved yet
+            since = combine(since, st.raw)
+        since = combine(since, self.odo.peek())
+        box = np.stack([s.x[:, k], s.y[:, k], s.th[:, k], s.c[:, k]], axis=1)
+        return self._states[k].t, self._states[k].theta, box, since
 
     def box(self) -> RBBox:
-        """The box at the latest integrated instant (predicted from the latest state)."""
+        """The box at the latest integrated instant (predicted from the latest solved
+        state)."""
         t = self.odo.t if self.odo.t is not None else 0.0
         ref = self.latest()
         if ref is None:
             return RBBox(t, (-_INF, _INF), (-_INF, _INF), (-_INF, _INF), self.status)
-        t0, theta0, b = ref
-        st = self.odo.peek() if t > t0 else StepIntegral()
+        _, theta0, b, st = ref
         out = predict_boxes(b[None], np.array([theta0]), [st], self.cfg)
         return RBBox(
             t,
@@ -387,11 +396,10 @@ class RangeBearingCP:
         )
 
     def snapshot(self) -> tuple[float, float, np.ndarray, StepIntegral, str, float] | None:
-        """What :func:`rb_predict.predict_boxes` needs to compute the box at the latest
-        integrated instant later, in bulk (for scoring many instants)."""
+        """What :func:`velocity_odometry.predict_boxes` needs to compute the box at the
+        latest integrated instant later, in bulk (for scoring many instants)."""
         ref = self.latest()
         if ref is None:
             return None
-        t0, theta0, b = ref
-        st = self.odo.peek() if self.odo.t is not None and self.odo.t > t0 else StepIntegral()
+        _, theta0, b, st = ref
         return (self.odo.t, theta0, b, st, self.status, self.last_alert)

@@ -213,9 +213,11 @@ def _relax(
 ) -> np.ndarray:
     """Boxes (2, B, H, n) of every hypothesis: the hard box met with the measurement
     projections ``p`` (B, m, n) it keeps."""
-    lo = np.maximum(hard[0][:, None, :], leave_out(p[0], q, hyps, True))
-    hi = np.minimum(hard[1][:, None, :], leave_out(p[1], q, hyps, False))
-    return np.stack([lo, hi])
+    lo = leave_out(p[0], q, hyps, True)
+    out = np.empty((2,) + lo.shape)
+    np.maximum(hard[0][:, None, :], lo, out=out[0])
+    np.minimum(hard[1][:, None, :], leave_out(p[1], q, hyps, False), out=out[1])
+    return out
 
 
 def _solve_pieces(
@@ -248,7 +250,7 @@ def _solve_pieces(
     bad = np.zeros((b, m), bool)
     at_state = at[:, None] == np.arange(n)[None, :]  # (m, n)
     dead = np.zeros(b, bool)
-    for it in range(1, iterations + 1):
+    for _ in range(iterations):
         old = np.concatenate([x, y, c])
         tl, tu = K.add(p.theta + c[0], p.theta + c[1], -half_a - GUARD, half_a + GUARD)
         th = _meet(th, (tl, tu))
@@ -318,7 +320,7 @@ def _solve_pieces(
         w_old, w_new = (old[1::2] - old[0::2])[:, lv], (new[1::2] - new[0::2])[:, lv]
         with np.errstate(invalid="ignore"):
             shrink = np.where(np.isfinite(w_old), (w_old - w_new) / np.maximum(w_old, 1e-9), 1.0)
-        if it >= 2 and float(np.max(np.nan_to_num(shrink, nan=0.0), initial=0.0)) <= tol:
+        if float(np.max(np.nan_to_num(shrink, nan=0.0), initial=0.0)) <= tol:
             break
     return x, y, th, c, dead, bad
 
@@ -331,9 +333,10 @@ def _dead4(h: np.ndarray) -> np.ndarray:
 def _hull(h: np.ndarray, alive: np.ndarray) -> np.ndarray:
     """Hull over the live hypotheses (axis 2) of (2, B, H, n) -> (2, B, n)."""
     a = alive[:, :, None]
-    lo = np.min(np.where(a, h[0], _INF), axis=1)
-    hi = np.max(np.where(a, h[1], -_INF), axis=1)
-    return np.stack([lo, hi])
+    out = np.empty((2, h.shape[1], h.shape[3]))
+    np.min(np.where(a, h[0], _INF), axis=1, out=out[0])
+    np.max(np.where(a, h[1], -_INF), axis=1, out=out[1])
+    return out
 
 
 def _excluded(hyps: np.ndarray, m: int) -> np.ndarray:

@@ -21,10 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from localization.interval import IV, meet_angle
-from localization.interval_trig import _RED_EPS, TRANS_MARGIN, TWO_PI
+from localization.interval_trig import _RED_EPS, TRANS_MARGIN, TWO_PI, bearing_bounds
 
 _INF = np.inf
-_PI_HI = float(np.nextafter(np.pi, _INF))
 _TWO_PI_HI = float(np.nextafter(TWO_PI, _INF))
 _nx = np.nextafter
 
@@ -124,28 +123,8 @@ def cos_sin(lo, hi) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return out[0], out[1], out[2], out[3]
 
 
-def bearing(yl, yh, xl, xh) -> Pair:
-    """The bearings of the box ``[yl, yh] x [xl, xh]`` without its origin
-    (``localization.interval_trig.bearing``): one interval in [-pi, pi], or in
-    [0, 2 pi] when the box reaches across the negative x-axis; the whole circle when the
-    origin is inside the box or is the box."""
-    yl, yh, xl, xh = yl + 0.0, yh + 0.0, xl + 0.0, xh + 0.0  # -0.0 -> +0.0
-    inside = (xl < 0.0) & (xh > 0.0) & (yl < 0.0) & (yh > 0.0)
-    cut = (xl < 0.0) & (yl < 0.0) & (yh >= 0.0) & ~inside
-    cs = []
-    for yy in (yl, yh):
-        for xx in (xl, xh):
-            c = np.arctan2(yy, xx)
-            c = np.where(cut & (c <= 0.0), c + TWO_PI, c)
-            cs.append(np.where((yy == 0.0) & (xx == 0.0), np.nan, c))
-    with np.errstate(invalid="ignore"):
-        c_lo = np.fmin(np.fmin(cs[0], cs[1]), np.fmin(cs[2], cs[3]))
-        c_hi = np.fmax(np.fmax(cs[0], cs[1]), np.fmax(cs[2], cs[3]))
-    none = np.isnan(c_lo)  # the box is the origin
-    lo = np.maximum(c_lo - TRANS_MARGIN, np.where(cut, 0.0, -_PI_HI))
-    hi = np.minimum(c_hi + TRANS_MARGIN, np.where(cut, 2.0 * _PI_HI, _PI_HI))
-    whole = inside | none
-    return np.where(whole, -_PI_HI, lo), np.where(whole, _PI_HI, hi)
+#: The bearings of the box [yl, yh] x [xl, xh] without its origin (as ``bearing``).
+bearing = bearing_bounds
 
 
 def two_pi_times(k: np.ndarray) -> Pair:
@@ -156,15 +135,30 @@ def two_pi_times(k: np.ndarray) -> Pair:
 
 def meet_angle_k(bl, bh, zl, zh) -> Pair:
     """``box`` met with the angle interval ``z`` modulo 2 pi
-    (``localization.interval_trig.meet_angle``): when box and z together are narrower
-    than a turn at most one branch of z meets the box, the nearest; otherwise (rare:
-    wide or unbounded headings) the general ``meet_angle``."""
+    (``localization.interval_trig.meet_angle``). Fast paths: a ``z`` of a whole turn or
+    more leaves the box as it is; when box and z are each narrower than a turn only the
+    branches k0 - 1, k0, k0 + 1 (k0 the nearest) can meet the box, and the result is the
+    hull of those meets. Otherwise (a box wider than a turn, huge magnitudes) the general
+    ``meet_angle``."""
     with np.errstate(invalid="ignore", over="ignore"):
         bm, zm = 0.5 * bl + 0.5 * bh, 0.5 * zl + 0.5 * zh
-        narrow = ((bh - bl) + (zh - zl) < TWO_PI - 1e-6) & (np.abs(bm) < 1e6) & (np.abs(zm) < 1e6)
-    if not narrow.all():
+        wb, wz = bh - bl, zh - zl
+        small = (np.abs(bm) < 1e6) & (np.abs(zm) < 1e6)
+        full = wz >= TWO_PI
+        fast = small & ((wb < TWO_PI - 1e-6) | full)
+    if not fast.all():
         out = meet_angle(IV(np.asarray(bl, float), np.asarray(bh, float)), IV(zl, zh))
         return out.lo, out.hi
-    sl, sh = two_pi_times(np.round((bm - zm) / TWO_PI))
-    al, ah = add(zl, zh, sl, sh)
-    return np.maximum(bl, al), np.minimum(bh, ah)
+    k0 = np.round((bm - zm) / TWO_PI)
+    if bool(np.all((wb + wz < TWO_PI - 1e-6) | full)):  # one branch at most: the nearest
+        sl, sh = two_pi_times(k0)
+        al, ah = add(zl, zh, sl, sh)
+        return np.where(full, bl, np.maximum(bl, al)), np.where(full, bh, np.minimum(bh, ah))
+    lo, hi = np.full(np.shape(bm), np.inf), np.full(np.shape(bm), -np.inf)
+    for dk in (-1.0, 0.0, 1.0):
+        sl, sh = two_pi_times(k0 + dk)
+        al, ah = add(zl, zh, sl, sh)
+        ml, mh = np.maximum(bl, al), np.minimum(bh, ah)
+        hit = ml <= mh
+        lo, hi = np.where(hit, np.minimum(lo, ml), lo), np.where(hit, np.maximum(hi, mh), hi)
+    return np.where(full, bl, lo), np.where(full, bh, hi)

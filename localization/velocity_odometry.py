@@ -57,6 +57,14 @@ class StepIntegral:
     unknown: float = 0.0  # time without a fresh command
 
 
+def combine(a: StepIntegral, b: StepIntegral) -> StepIntegral:
+    """The integral over two consecutive steps (``a`` then ``b``)."""
+    return StepIntegral(
+        a.dt + b.dt, a.s + b.s, a.h + b.h, min(a.hmin, a.h + b.hmin), max(a.hmax, a.h + b.hmax),
+        a.turn + b.turn, a.unknown + b.unknown,
+    )  # fmt: skip
+
+
 class CommandIntegrator:
     """Streams stamped commands (in time order) and integrates them up to any instant;
     :meth:`take` returns the integral since the last take and starts a new step."""
