@@ -19,7 +19,9 @@ over 0.25 s). The same instant, not shifted: the camera's bearings line up with 
 truth best at zero delay; the 0.16-0.20 s lag is that of the commanded velocities, which
 the odometry model applies (``command_lag_s``). Containment: x, y inside and the heading
 inside modulo 2 pi. Areas and heading widths are medians over all robots' scored ticks
-(unbounded boxes count as infinite, heading widths are capped at 2 pi).
+(unbounded boxes count as infinite, heading widths are capped at 2 pi); also over the
+"fresh" ticks alone, whose box comes from a state solved at most 1 s before (the robot
+saw landmarks or peers), apart from the stretches it drives blind.
 
 Prints a table per robot, then ONE JSON object as the last line: cp_containment_min,
 cp_area_median_m2 (cooperative), cp_single_area_median_m2, cp_heading_width_median_rad,
@@ -52,11 +54,14 @@ from localization.mrclam_track import score_track
 
 DEFAULT_DIR = Path(__file__).resolve().parents[2] / "shared/data/mrclam/MRCLAM_Dataset6"
 TWO_PI = 2.0 * np.pi
+#: Boxes predicted from a state solved at most this long before ("fresh": landmarks or
+#: peers in view) are also scored apart from those of the stretches without any.
+FRESH_S = 1.0
 
 
 def score_cp(run: MrclamRun, tracks: dict[int, CpTrack]) -> dict:
     """Per robot and pooled: containment, areas, heading widths at scored ticks."""
-    per, areas, widths = {}, [], []
+    per, areas, widths, fresh = {}, [], [], []
     for r, tr in tracks.items():
         pose, has = run.robots[r].truth_at(tr.t)
         inside = containment(tr, pose)[has]
@@ -66,6 +71,7 @@ def score_cp(run: MrclamRun, tracks: dict[int, CpTrack]) -> dict:
         hw = np.minimum(np.nan_to_num(w[:, 2], nan=TWO_PI, posinf=TWO_PI), TWO_PI)[has]
         areas.append(area)
         widths.append(hw)
+        fresh.append(tr.age[has] <= FRESH_S)
         misses = tr.t[has][~inside]
         per[r] = {
             "scored": int(has.sum()),
@@ -80,8 +86,11 @@ def score_cp(run: MrclamRun, tracks: dict[int, CpTrack]) -> dict:
             "lost": sum(1 for _, e in tr.events if e == "lost"),
             "reinit": sum(1 for _, e in tr.events if e == "reinit"),
         }
-    a, h = np.concatenate(areas), np.concatenate(widths)
+    a, h, f = np.concatenate(areas), np.concatenate(widths), np.concatenate(fresh)
     return {
+        "area_median_fresh_m2": float(np.median(a[f])) if f.any() else float("nan"),
+        "heading_width_median_fresh_rad": float(np.median(h[f])) if f.any() else float("nan"),
+        "fresh_fraction": float(f.mean()) if f.size else float("nan"),
         "robots": per,
         "containment_min": min(p["containment"] for p in per.values()),
         "area_median_m2": float(np.median(a)) if a.size else float("nan"),
@@ -175,6 +184,9 @@ def main(argv: list[str] | None = None) -> int:
         "cp_single_area_median_m2": s_score["area_median_m2"],
         "cp_single_containment_min": s_score["containment_min"],
         "cp_heading_width_median_rad": c_score["heading_width_median_rad"],
+        "cp_area_median_fresh_m2": c_score["area_median_fresh_m2"],
+        "cp_heading_width_median_fresh_rad": c_score["heading_width_median_fresh_rad"],
+        "cp_fresh_fraction": c_score["fresh_fraction"],
         "cp_single_heading_width_median_rad": s_score["heading_width_median_rad"],
         "cp_outliers_named": sum(v["outliers_named"] for v in c_score["robots"].values()),
         "cp_lost": sum(v["lost"] for v in c_score["robots"].values()),

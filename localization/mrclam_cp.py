@@ -33,12 +33,14 @@ _INF = np.inf
 @dataclass
 class CpTrack:
     """One robot's reported boxes: at ticks ``t`` (N,), ``box`` (N, 2, 3) (lo/hi of x,
-    y, heading; heading unwrapped), ``status`` (N,) per tick; the observations named
-    inconsistent, the fallback events, and the solver's counters."""
+    y, heading; heading unwrapped), ``status`` (N,) and ``age`` (N,: seconds since the
+    solved state the box is predicted from; inf before the first) per tick; the
+    observations named inconsistent, the fallback events, and the solver's counters."""
 
     t: np.ndarray
     box: np.ndarray
     status: np.ndarray
+    age: np.ndarray
     outliers: list[tuple[float, str, int]]
     events: list[tuple[float, str]]
     solves: int
@@ -146,6 +148,7 @@ def _track(cp: RangeBearingCP, snaps: list, cfg: RangeBearingCPConfig, n_obs: in
     box = np.empty((n, 2, 3))
     box[:, 0], box[:, 1] = -_INF, _INF
     status = np.array(["unknown"] * n, dtype=object)
+    age = np.full(n, np.inf)
     idx = [i for i, (_, s) in enumerate(snaps) if s is not None]
     if idx:
         b = np.stack([snaps[i][1][2] for i in idx])
@@ -153,7 +156,8 @@ def _track(cp: RangeBearingCP, snaps: list, cfg: RangeBearingCPConfig, n_obs: in
         steps = [snaps[i][1][3] for i in idx]
         box[idx] = predict_boxes(b, theta0, steps, cfg)
         status[idx] = [snaps[i][1][4] for i in idx]
-    return CpTrack(t, box, status, list(cp.outliers), list(cp.events), cp.solves, n_obs)
+        age[idx] = [snaps[i][1][3].dt for i in idx]
+    return CpTrack(t, box, status, age, list(cp.outliers), list(cp.events), cp.solves, n_obs)
 
 
 def containment(track: CpTrack, truth: np.ndarray) -> np.ndarray:
