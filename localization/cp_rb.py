@@ -7,11 +7,11 @@ their stamps. Seconds on the data's own clock, metres, radians.
   odometry's error model;
 - ``localization.range_bearing``: the observation contractor;
 - ``localization.cp_rb_solve``: the window's contraction, q-relaxed over every
-  observation, and the heading re-basing;
+  observation, with the heading cut into pieces (sectors when it is unknown);
 - here: :class:`RangeBearingCP`, which keeps the window (one state per observation
-  instant; a state leaving the window becomes the next one's prior), turns observations
-  into intervals with the bounds of ``RangeBearingCPConfig``, names the inconsistent
-  ones, and fails gracefully.
+  instant, solved every ``solve_period_s``; a state leaving the window becomes the next
+  one's prior), turns observations into intervals with the bounds of
+  ``RangeBearingCPConfig``, names the inconsistent ones, and fails gracefully.
 
 **Graceful failure.** A solve that comes out empty proves that more than q observations
 of the window (or a prior built from an earlier window) broke their bounds. Then, in
@@ -24,7 +24,10 @@ empty the robot is **lost**: the window is cleared, the box is the whole plane, 
 next observations narrow it again. Every fallback is recorded in ``events`` with its
 time; the observations found inconsistent are named in ``outliers``; a box published
 while ``relaxed``, ``reinit`` or ``lost`` carries only the weaker guarantee its status
-says, and peers may ignore it (``last_alert``).
+says, and peers may ignore it (``last_alert``). What no fallback can catch: more than q
+observations wrong in the same way and contradicted by nothing else in the window (a
+misread repeated with no other landmark in view) give a consistent, wrong box. That is
+the limit of the guarantee, and why q and the bounds are configuration.
 
 Usage (time-ordered calls)::
 
