@@ -28,6 +28,93 @@ class CPConfig:
     kappa: float = 0.5
     chord: bool = True
     hc4_odometry: bool = False  # also contract headings from the positions (eq. (2) backward)
-    iterations: int = 3
+    iterations: int = 2
     tol: float = 1e-3
     min_gps_mode: int = 2
+
+
+@dataclass(frozen=True)
+class RangeBearingCPConfig:
+    """Guaranteed bounds and solver settings of the real-robot CP localizer
+    (``localization.cp_rb``): velocity odometry, range-bearing to known landmarks and to
+    peers. Bounds, not sigmas.
+
+    How the defaults were derived (docs/algorithms.md, "CP on real robots", has the
+    figures; ``bench/mrclam_errors.py DIR`` prints them for any MRCLAM run): each bound is
+    a robot or sensor property read off Dataset 6's motion-capture truth over all five
+    robots, at or above the 99.9th percentile of the error and rounded outward; nothing
+    was tuned on the localizer's score. Errors beyond a bound are the q-relaxation's job
+    (``outliers``), and the motion model is set at the largest error seen (it cannot be
+    voted out).
+    """
+
+    # -- velocity odometry (localization.velocity_odometry) --
+    #: Commands act this much after their stamp (README: truth trails by 0.16-0.20 s).
+    command_lag_s: float = 0.18
+    #: A command older than this is no longer trusted (largest odometry gap seen: 1.03 s).
+    max_hold_s: float = 1.1
+    #: Heading transient a: |E(t1) - E(t0)| <= a + b dt + r int|w| over every pair of
+    #: instants, E the integrated heading's error (b, r below): 99.99th percentile of the
+    #: pairs' residual over 5 x 888 s: 0.10 rad (the largest, 0.134, at motion-capture
+    #: glitches).
+    heading_transient_rad: float = 0.10
+    heading_drift_radps: float = 0.03  # b
+    heading_turn_rel: float = 0.3  # r, fraction of the commanded turn
+    yaw_rate_cap_radps: float = 0.7  # fastest turn seen: 0.61 rad/s
+    #: Path length L in [(1 - lo) S - p, (1 + hi) S + p], p = path_abs + path_drift dt.
+    speed_rel_hi: float = 0.2
+    speed_rel_lo: float = 1.0  # robots stall while commanded to move
+    path_abs_m: float = 0.005
+    path_drift_mps: float = 0.01
+    #: Per-axis slack (pushes, sideways motion): slack_abs + slack_drift dt.
+    slack_abs_m: float = 0.005
+    slack_drift_mps: float = 0.005
+    speed_cap_mps: float = 0.1  # fastest seen: 0.084 m/s
+    # -- range-bearing (localization.range_bearing) --
+    #: True range in [(1 - lo) r - abs, (1 + hi) r + abs]: true/measured range is in
+    #: [0.931, 1.147] for 99.9 % of landmark sightings, [0.909, 1.151] for robots.
+    range_rel_lo: float = 0.10
+    range_rel_hi: float = 0.16
+    range_abs_m: float = 0.02
+    #: Bearing error = a part common to every bearing of one instant (the camera's own
+    #: heading error: one per frame) + a part per bearing. Over 10530 frames (19268
+    #: landmark and robot bearings) a common part within 0.08 rad leaves every bearing
+    #: within 0.03 rad of it but for 14 gross outliers (0.07 %); the README's 99.9th
+    #: percentile of the whole error is 0.078 rad.
+    bearing_common_rad: float = 0.08
+    bearing_rad: float = 0.03
+    #: Landmarks' surveyed positions +- this many of their standard deviations.
+    landmark_sigmas: float = 5.0
+    #: A peer's published box is widened by these times its age.
+    peer_speed_mps: float = 0.1
+    peer_yaw_rate_radps: float = 0.7
+    #: A peer's box is not used for this long after the peer weakened its guarantee
+    #: (relaxed, reinit, lost): two windows, for its window to hold only fresh data.
+    peer_quarantine_s: float = 5.0
+    # -- solver (localization.cp_rb_solve) --
+    #: q: observations of the window that may break their bounds.
+    outliers: int = 1
+    #: On an empty window, up to this many more are voted out (the prior kept) before
+    #: the prior is dropped (localization.cp_rb, "graceful failure").
+    max_extra_outliers: int = 3
+    window_s: float = 2.5
+    #: Solve at most this often (s; 0: at every camera frame, about every 0.23 s).
+    #: Frames in between join the window and are used at the next solve; boxes are
+    #: predicted from the last solve. 0.3 s solves every other frame: 1.8x fewer solves
+    #: for boxes about 10 % larger (docs/benchmarks.md).
+    solve_period_s: float = 0.3
+    max_states: int = 12
+    iterations: int = 2
+    tol: float = 0.01
+    #: The newest heading is cut into pieces this wide (at most max_pieces), or, when it
+    #: is unknown, into heading_sectors sectors of the circle (localization.cp_rb_solve).
+    heading_piece_rad: float = 0.1
+    max_pieces: int = 5
+    heading_sectors: int = 24
+
+    def __post_init__(self) -> None:
+        if self.outliers < 0 or self.window_s <= 0 or self.max_states < 2 or self.iterations < 1:
+            raise ValueError(
+                "RangeBearingCPConfig: outliers >= 0, window_s > 0, max_states >= 2 and "
+                f"iterations >= 1 are required (got {self})"
+            )

@@ -105,31 +105,37 @@ def bearing(y: IV, x: IV) -> IV:
     """
     e = y.is_empty() | x.is_empty()
     yl, yh, xl, xh = np.broadcast_arrays(y.lo, y.hi, x.lo, x.hi)
-    # placeholders for empties; +0.0 for a zero end (atan2(-0., x<0) would give -pi)
-    yl, yh = np.where(e, 0.0, yl) + 0.0, np.where(e, 0.0, yh) + 0.0
-    xl, xh = np.where(e, 1.0, xl) + 0.0, np.where(e, 1.0, xh) + 0.0
+    # placeholders for empties
+    yl, yh = np.where(e, 0.0, yl), np.where(e, 0.0, yh)
+    xl, xh = np.where(e, 1.0, xl), np.where(e, 1.0, xh)
+    lo, hi = bearing_bounds(yl, yh, xl, xh)
+    return _mask(IV(lo, hi), e)
+
+
+def bearing_bounds(yl, yh, xl, xh) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bearing` on bare arrays of non-empty intervals (also the window solver's
+    kernel, ``localization.interval_kernels.bearing``)."""
+    yl, yh, xl, xh = yl + 0.0, yh + 0.0, xl + 0.0, xh + 0.0  # atan2(-0., x<0) would give -pi
     inside = (xl < 0.0) & (xh > 0.0) & (yl < 0.0) & (yh > 0.0)
     # Across the negative x-axis angles are counted in [0, 2pi): the box then has points
     # with x < 0 below and on or above the axis (and, the origin not inside, no point
     # with x > 0 above it: direction 0 is reached from below, as 2pi).
     cut = (xl < 0.0) & (yl < 0.0) & (yh >= 0.0) & ~inside
-    corners = []
+    cs = []
     for yy in (yl, yh):
         for xx in (xl, xh):
             c = np.arctan2(yy, xx)
             c = np.where(cut & (c <= 0.0), c + TWO_PI, c)
-            corners.append(np.where((yy == 0.0) & (xx == 0.0), np.nan, c))
-    corners = np.stack(corners)
-    none = np.all(np.isnan(corners), axis=0)  # the box is the origin
+            cs.append(np.where((yy == 0.0) & (xx == 0.0), np.nan, c))  # the origin: left out
     with np.errstate(invalid="ignore"):
-        c_lo = np.nanmin(np.where(none, 0.0, corners), axis=0)
-        c_hi = np.nanmax(np.where(none, 0.0, corners), axis=0)
+        c_lo = np.fmin(np.fmin(cs[0], cs[1]), np.fmin(cs[2], cs[3]))
+        c_hi = np.fmax(np.fmax(cs[0], cs[1]), np.fmax(cs[2], cs[3]))
+    none = np.isnan(c_lo)  # the box is the origin
     pi_hi = float(PI.hi)
     lo = np.maximum(c_lo - TRANS_MARGIN, np.where(cut, 0.0, -pi_hi))
     hi = np.minimum(c_hi + TRANS_MARGIN, np.where(cut, 2.0 * pi_hi, pi_hi))
-    lo = np.where(inside | none, -pi_hi, lo)
-    hi = np.where(inside | none, pi_hi, hi)
-    return _mask(IV(lo, hi), e)
+    whole = inside | none
+    return np.where(whole, -pi_hi, lo), np.where(whole, pi_hi, hi)
 
 
 def atan2(y: IV, x: IV, ref=None) -> IV:

@@ -1,0 +1,216 @@
+"""The error statistics of an MRCLAM run that the real-robot CP's default bounds
+(``localization.cp_config.RangeBearingCPConfig``) are derived from, and how often each
+bound is broken on that run.
+
+    python3 bench/mrclam_errors.py [DIR] [--robots 1,2]
+
+Against the motion-capture truth (where it exists):
+
+- clock: bearing residual percentiles with the truth shifted by -0.1 .. 0.2 s (the
+  camera lines up with the truth at zero shift; the commands lead it by the lag);
+- heading: E(t) = truth heading - integrated lagged commanded turn, on a 0.02 s grid;
+  over every pair of instants up to 10 s apart the residual
+  |E(t1) - E(t0)| - b dt - r int|w| (b, r from the config) must stay below the
+  transient a: its percentiles and the pairs above a;
+- path: the true displacement over 0.25 / 1 / 2 s against the commanded path length
+  (along the mean heading) and sideways beyond the cone: violations of the path model;
+- speeds: the largest true speed and turn rate (0.5 s), the longest command gap;
+- ranges: true / measured range percentiles (landmarks, robots), and the fraction
+  outside [1 - range_rel_lo, 1 + range_rel_hi] (plus range_abs_m);
+- bearings: the fraction of bearings that break the per-frame model (a part common to
+  the frame within bearing_common_rad, each bearing within bearing_rad of it), the best
+  common offset per frame chosen to break the fewest.
+
+The LAST line is one JSON object with these figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from localization.cp_config import RangeBearingCPConfig
+from localization.mrclam import MrclamRun, load_mrclam
+from numerics.angles import wrap
+
+DEFAULT_DIR = Path(__file__).resolve().parents[2] / "shared/data/mrclam/MRCLAM_Dataset6"
+GRID = 0.02
+PCT = [50, 99, 99.9, 99.99, 100]
+
+
+def _pct(v: np.ndarray) -> list[float]:
+    return [round(float(x), 4) for x in np.percentile(v, PCT)] if v.size else []
+
+
+def _targets(run: MrclamRun, r: int, m: np.ndarray, shift: float = 0.0):
+    """(truth pose at the measurement, target position, ok) per measurement."""
+    p, ok = run.robots[r].truth_at(m[:, 0] + shift)
+    tgt = np.full((len(m), 2), np.nan)
+    for i, s in enumerate(m[:, 1].astype(int)):
+        if s in run.landmarks:
+            tgt[i] = run.landmarks[s][:2]
+        elif s in run.robots:
+            q, okq = run.robots[s].truth_at(m[i, 0] + shift)
+            if okq[0]:
+                tgt[i] = q[0, :2]
+    return p, tgt, ok & np.isfinite(tgt[:, 0])
+
+
+def clock(run: MrclamRun, ids: list[int]) -> dict:
+    out = {}
+    for shift in (-0.1, -0.05, 0.0, 0.05, 0.1, 0.2):
+        e = []
+        for r in ids:
+            m = run.robots[r].measurements
+            p, tgt, ok = _targets(run, r, m, shift)
+            b = np.arctan2(tgt[:, 1] - p[:, 1], tgt[:, 0] - p[:, 0]) - p[:, 2]
+            e.append(np.abs(wrap(m[ok, 3] - b[ok])))
+        out[shift] = _pct(np.concatenate(e))[:3]
+    return out
+
+
+def _heading_arrays(run: MrclamRun, r: int, lag: float):
+    o = run.robots[r].odometry
+    t, w = o[:, 0], o[:, 2]
+    tg = np.arange(t[0] + 1.0, min(t[-1], run.robots[r].truth[-1, 0]) - 1.0, GRID)
+    i = np.clip(np.searchsorted(t, tg - lag, side="right") - 1, 0, len(t) - 1)
+    wg = w[i]
+    h = np.concatenate([[0.0], np.cumsum(wg[:-1] * GRID)])
+    a = np.concatenate([[0.0], np.cumsum(np.abs(wg[:-1]) * GRID)])
+    p, ok = run.robots[r].truth_at(tg)
+    return np.unwrap(p[:, 2]) - h, a, ok
+
+
+def heading(run: MrclamRun, ids: list[int], cfg: RangeBearingCPConfig) -> dict:
+    b, rr, a = cfg.heading_drift_radps, cfg.heading_turn_rel, cfg.heading_transient_rad
+    res, n, over = [], 0, 0
+    for r in ids:
+        e, turn, ok = _heading_arrays(run, r, cfg.command_lag_s)
+        for k in list(range(1, 50)) + list(range(50, 500, 10)):
+            d = np.abs(e[k:] - e[:-k]) - b * k * GRID - rr * (turn[k:] - turn[:-k])
+            d = d[ok[k:] & ok[:-k]]
+            n += d.size
+            over += int((d > a).sum())
+            res.append(np.percentile(d, [99.99, 100]) if d.size else np.zeros(2))
+    res = np.array(res)
+    return {"pairs": n, "pairs_over_a": over, "residual_p9999_max": float(res[:, 0].max()),
+            "residual_max": float(res[:, 1].max())}  # fmt: skip
+
+
+def path(run: MrclamRun, ids: list[int], cfg: RangeBearingCPConfig) -> dict:
+    out = {}
+    for span in (0.25, 1.0, 2.0):
+        n = bad = 0
+        for r in ids:
+            rb = run.robots[r]
+            o = rb.odometry
+            t, v = o[:, 0], o[:, 1]
+            cs = np.concatenate([[0.0], np.cumsum(v[:-1] * np.diff(t))])
+
+            def integ(tq, t=t, cs=cs, v=v):
+                i = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, len(t) - 1)
+                return cs[i] + v[i] * (tq - t[i])
+
+            t0 = np.arange(t[0] + 1.0, t[-1] - span - 1.0, span)
+            poses, ok = [], np.ones(t0.size, bool)
+            for f in np.linspace(0.0, 1.0, 11):
+                p, okf = rb.truth_at(t0 + f * span)
+                poses.append(p)
+                ok &= okf
+            poses = np.array(poses)
+            th = np.unwrap(poses[:, :, 2], axis=0)
+            mid, half = 0.5 * (th.max(0) + th.min(0)), 0.5 * (th.max(0) - th.min(0))
+            d = poses[-1, :, :2] - poses[0, :, :2]
+            along = d[:, 0] * np.cos(mid) + d[:, 1] * np.sin(mid)
+            side = np.abs(-d[:, 0] * np.sin(mid) + d[:, 1] * np.cos(mid)) - np.abs(along) * np.sin(
+                half
+            )
+            s = integ(t0 + span - cfg.command_lag_s) - integ(t0 - cfg.command_lag_s)
+            p_abs = cfg.path_abs_m + cfg.path_drift_mps * span
+            l_hi = (1 + cfg.speed_rel_hi) * s + p_abs
+            l_lo = np.maximum(0.0, (1 - cfg.speed_rel_lo) * s - p_abs)
+            slack = cfg.slack_abs_m + cfg.slack_drift_mps * span
+            viol = (along > l_hi + slack) | (along < l_lo - slack) | (side > slack)
+            n += int(ok.sum())
+            bad += int((viol & ok).sum())
+        out[span] = {"spans": n, "violations": bad}
+    return out
+
+
+def speeds(run: MrclamRun, ids: list[int]) -> dict:
+    v, w, gap = 0.0, 0.0, 0.0
+    for r in ids:
+        rb = run.robots[r]
+        tg = np.arange(rb.truth[0, 0] + 1, rb.truth[-1, 0] - 1, 0.5)
+        p, ok = rb.truth_at(tg)
+        ok2 = ok[1:] & ok[:-1]
+        v = max(v, float((np.hypot(*np.diff(p[:, :2], axis=0).T) / 0.5)[ok2].max()))
+        w = max(w, float((np.abs(wrap(np.diff(p[:, 2]))) / 0.5)[ok2].max()))
+        gap = max(gap, float(np.diff(rb.odometry[:, 0]).max()))
+    return {"speed_max_mps": v, "turn_rate_max_radps": w, "command_gap_max_s": gap}
+
+
+def ranges_and_bearings(run: MrclamRun, ids: list[int], cfg: RangeBearingCPConfig) -> dict:
+    ratio = {"landmark": [], "robot": []}
+    frames = []
+    for r in ids:
+        m = run.robots[r].measurements
+        p, tgt, ok = _targets(run, r, m)
+        true = np.hypot(tgt[:, 0] - p[:, 0], tgt[:, 1] - p[:, 1])
+        lm = np.isin(m[:, 1].astype(int), list(run.landmarks))
+        for kind, sel in (("landmark", ok & lm), ("robot", ok & ~lm)):
+            ratio[kind].append(true[sel] / m[sel, 2])
+        e = wrap(m[:, 3] - (np.arctan2(tgt[:, 1] - p[:, 1], tgt[:, 0] - p[:, 0]) - p[:, 2]))
+        for t in np.unique(m[ok, 0]):
+            frames.append(e[ok & (m[:, 0] == t)])
+    out = {}
+    for kind, v in ratio.items():
+        v = np.concatenate(v)
+        lo, hi = 1 - cfg.range_rel_lo, 1 + cfg.range_rel_hi
+        out[f"{kind}_true_over_measured_pct_0.05_99.95"] = [
+            round(float(x), 4) for x in np.percentile(v, [0.05, 99.95])
+        ]
+        out[f"{kind}_range_outside"] = float(np.mean((v < lo) | (v > hi)))
+    br, bc = cfg.bearing_rad, cfg.bearing_common_rad
+    broken = 0
+    for e in frames:
+        cands = np.clip(np.concatenate([e - br, e + br, [0.0]]), -bc, bc)
+        broken += min(int(np.sum(np.abs(e - c) > br)) for c in cands)
+    n = sum(len(f) for f in frames)
+    out.update(frames=len(frames), bearings=n, bearings_breaking_frame_model=broken)
+    out["bearing_outside_fraction"] = broken / max(n, 1)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("dir", nargs="?", default=str(DEFAULT_DIR))
+    ap.add_argument("--robots", default=None)
+    args = ap.parse_args(argv)
+    robots = [int(r) for r in args.robots.split(",")] if args.robots else None
+    run = load_mrclam(args.dir, robots)
+    ids = sorted(run.robots)
+    cfg = RangeBearingCPConfig()
+    out = {
+        "run": Path(args.dir).name,
+        "clock_bearing_pct_50_99_999_by_truth_shift": clock(run, ids),
+        "heading": heading(run, ids, cfg),
+        "path": path(run, ids, cfg),
+        **speeds(run, ids),
+        **ranges_and_bearings(run, ids, cfg),
+    }
+    for k, v in out.items():
+        print(f"{k:>45}: {v}")
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

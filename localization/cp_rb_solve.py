@@ -1,0 +1,384 @@
+"""Contraction of a window of real-robot states with the q-relaxed intersection over
+every observation (issue 14 items 2-3; ekf-vs-cp.txt eq. (5) with the relaxed
+intersection of Jaulin's set-membership methods).
+
+Unknowns, per state k of the window: position x_k, y_k, heading th_k, and the heading
+offset c_k = th_k - Theta_k - s_k of the velocity-odometry model
+(``localization.velocity_odometry``: Theta_k the commanded heading, |s_k| <= a/2).
+Constraints:
+
+- hard (never relaxed): the window's prior (the state that left the window), the chains
+  c_{k+1} - c_k in [-dc_k, dc_k] and x_{k+1} - x_k in dx_k, y likewise, with dx_k, dy_k
+  from the headings inside the step;
+- relaxable: every observation j (landmark, peer seen, seen by a peer) at its state.
+
+**Relaxed intersection.** Each pass contracts every observation with the current box of
+its state (``localization.range_bearing``), projects the results onto every state along
+the chains, and keeps at each state what all but at most q of them allow (the (q+1)-th
+largest lower and smallest upper bound, ``chain.relaxed_chain_at``), for x, y and c;
+the heading of a state also meets the relaxed intersection of its own observations.
+If at most q observations of the window are wrong, every correct one contracts a box
+that holds the truth into one that still does, so each pass, and the result, holds the
+truth: **the truth is inside unless more than q observations of the window broke their
+bounds** (or a prior from an earlier window did). An observation whose contraction is
+empty, or misses the final box, is named inconsistent; more than q of them leave some
+state empty, which the caller reports instead of a box.
+
+**Heading pieces.** Boxes lose the coupling of heading and position: a heading interval
+of width w turns every range-bearing observation at range r into a box some r w wide,
+and with the heading unknown a bearing says nothing at all. So the newest state's
+heading is cut into pieces no wider than ``piece_rad`` (a one-dimensional paving), the
+window is solved for every piece at once (a batch axis through every array), and the
+results of the pieces not proven empty are joined (hull). Sound: every solution lies in
+some piece, and that piece's solve keeps it.
+
+**Headings that recover.** Headings are real intervals in one representation (shifting
+all of them by 2 pi k changes nothing). When the newest offset is almost a whole turn
+wide (lost, or never known), the pieces are sectors of [-pi, pi) instead: any solution
+has a 2 pi k shift whose newest heading lies in one of them. Each sector carries its own
+representation along the chains (the heading priors are met with it on every 2 pi
+branch), so every bearing meets it on one branch, and the window's observations rule
+out the sectors they cannot all (but q) agree with. The survivors are joined in the
+representation that leaves out the largest gap of the circle between them.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from localization import interval_kernels as K
+from localization.chain import chain_k, leave_out, projections, relaxed_chain_at
+from localization.interval import IV, meet_angle
+from localization.interval_trig import TWO_PI
+from localization.range_bearing import AX, AY, OTH, OX, OY, contract_observation
+from localization.velocity_odometry import GUARD, displacements
+
+_INF = np.inf
+#: A newest offset wider than this: the heading is unknown; solve by sectors.
+LOST_WIDTH = TWO_PI - 0.5
+#: Above this many hypotheses (m choose q) the relaxation is done axis by axis.
+MAX_HYPOTHESES = 4000
+
+
+@dataclass
+class WindowProblem:
+    """The window as the solver sees it: n states, n - 1 steps, m observations.
+
+    Boxes are (2, n) arrays (lo row, hi row). ``obs`` is (7, 2, m) in the row order of
+    ``localization.range_bearing``; the robot's own rows (OX, OY, OTH where ``own``,
+    else AX, AY) are filled by the solver from the state boxes."""
+
+    theta: np.ndarray  # (n,) commanded heading at each state
+    dc: np.ndarray  # (n-1,) step offset bounds
+    hmin: np.ndarray
+    hmax: np.ndarray
+    l_lo: np.ndarray
+    l_hi: np.ndarray
+    slack: np.ndarray
+    cap: np.ndarray
+    hx: np.ndarray  # (2, n) hard boxes
+    hy: np.ndarray
+    hth: np.ndarray
+    hc: np.ndarray
+    obs: np.ndarray  # (7, 2, m)
+    at: np.ndarray  # (m,) state of each observation
+    own: np.ndarray  # (m,) the robot is the observer (else the target)
+
+
+@dataclass
+class WindowSolution:
+    x: np.ndarray  # (2, n)
+    y: np.ndarray
+    th: np.ndarray
+    c: np.ndarray
+    inconsistent: np.ndarray  # (m,) observations that broke their bounds
+    empty: bool  # more than q observations (or a prior) wrong: no box
+    rebased: bool  # the heading was unknown: solved by sectors, a new representation
+    pieces: int  # heading pieces solved
+
+
+def _meet(a: np.ndarray, b) -> np.ndarray:
+    out = np.empty(np.broadcast_shapes(np.shape(a), (2,) + np.shape(b[0])))
+    if out.ndim == 1:
+        return np.array([max(a[0], b[0]), min(a[1], b[1])])
+    np.maximum(a[0], b[0], out=out[0])
+    np.minimum(a[1], b[1], out=out[1])
+    return out
+
+
+def _dead(*boxes: np.ndarray) -> np.ndarray:
+    """Per piece (axis 1 of (2, B, n) boxes): some box is empty."""
+    out = np.zeros(boxes[0].shape[1], bool)
+    for b in boxes:
+        out |= np.any(~(b[0] <= b[1]), axis=-1)
+    return out
+
+
+def _relaxed_per_state(
+    lo: np.ndarray, hi: np.ndarray, at: np.ndarray, n: int, q: int
+) -> np.ndarray:
+    """At each state, what all but q of its own observations' intervals (B, m) allow:
+    (2, B, n)."""
+    m = at.shape[0]
+    out = np.empty((2,) + lo.shape[:-1] + (n,))
+    out[0], out[1] = -_INF, _INF
+    if m <= q:
+        return out
+    member = at[:, None] == np.arange(n)[None, :]
+    p_lo = np.where(member, lo[..., :, None], -_INF)
+    p_hi = np.where(member, hi[..., :, None], _INF)
+    out[0] = np.partition(p_lo, m - 1 - q, axis=-2)[..., m - 1 - q, :]
+    out[1] = np.partition(p_hi, q, axis=-2)[..., q, :]
+    return out
+
+
+def _offset_of(th: np.ndarray, theta: np.ndarray, half_a: float) -> np.ndarray:
+    """Offsets c = th - Theta - s, |s| <= half_a."""
+    return np.stack(K.sub(th[0], th[1], theta - half_a - GUARD, theta + half_a + GUARD))
+
+
+def _widen(b: np.ndarray, r: float) -> np.ndarray:
+    out = np.empty(np.shape(b))
+    out[0], out[1] = K.add(b[0], b[1], -r, r)
+    return out
+
+
+def _pieces(
+    p: WindowProblem, half_a: float, beta_c: float, piece_rad: float, max_pieces: int, sectors: int
+):
+    """The hard boxes (2, B, n) of the offsets, headings and camera headings of every
+    piece of the newest camera heading, and whether the pieces are sectors."""
+    n = p.theta.shape[0]
+    k = n - 1
+    c0 = _meet(p.hc, _offset_of(p.hth, p.theta, half_a))
+    c0 = _meet(c0, chain_k(c0[0], c0[1], -p.dc, p.dc))
+    lost = not c0[1, k] - c0[0, k] < LOST_WIDTH
+    if not lost:
+        t0 = _meet(
+            p.hth[:, k],
+            K.add(p.theta[k] + c0[0, k], p.theta[k] + c0[1, k], -half_a - GUARD, half_a + GUARD),
+        )
+        f0 = _widen(t0, beta_c)
+        b = int(min(max(np.ceil((f0[1] - f0[0]) / piece_rad), 1), max_pieces))
+        e = f0[0] + (f0[1] - f0[0]) * np.arange(b + 1) / b
+        lo, hi = np.maximum(K.down(e[:-1]), f0[0]), np.minimum(K.up(e[1:]), f0[1])
+        lo[0], hi[-1] = f0[0], f0[1]
+        hc = np.repeat(c0[:, None, :], b, axis=1)
+        hth = np.repeat(p.hth[:, None, :], b, axis=1)
+    else:
+        # Sectors of [-pi, pi) for the newest camera heading; every hard heading box met
+        # with each sector's representation (carried along the chain) on every branch.
+        b = sectors
+        e = -np.pi + TWO_PI * np.arange(b + 1) / b
+        lo, hi = K.down(e[:-1] - 1e-9), K.up(e[1:] + 1e-9)
+        anchor = np.empty((2, b, n))
+        anchor[0], anchor[1] = -_INF, _INF
+        tl, th = K.add(lo, hi, -beta_c, beta_c)
+        anchor[:, :, k] = K.sub(tl, th, p.theta[k] - half_a - GUARD, p.theta[k] + half_a + GUARD)
+        hc = _meet(np.stack(chain_k(anchor[0], anchor[1], -p.dc, p.dc)), anchor)
+        hth = np.stack(K.add(p.theta + hc[0], p.theta + hc[1], -half_a - GUARD, half_a + GUARD))
+        for h, ph in ((hc, p.hc), (hth, p.hth)):
+            fin = np.isfinite(ph[0]) & np.isfinite(ph[1])
+            if fin.any():
+                met = meet_angle(IV(h[0][:, fin], h[1][:, fin]), IV(ph[0, fin], ph[1, fin]))
+                h[0][:, fin], h[1][:, fin] = met.lo, met.hi
+    hph = np.empty((2, b, n))
+    hph[0], hph[1] = -_INF, _INF
+    hph[0, :, k], hph[1, :, k] = lo, hi
+    tl, th = K.add(lo, hi, -beta_c, beta_c)
+    hth[0, :, k], hth[1, :, k] = np.maximum(hth[0, :, k], tl), np.minimum(hth[1, :, k], th)
+    cl, ch = K.sub(tl, th, p.theta[k] - half_a - GUARD, p.theta[k] + half_a + GUARD)
+    hc[0, :, k], hc[1, :, k] = np.maximum(hc[0, :, k], cl), np.minimum(hc[1, :, k], ch)
+    return hc, hth, hph, lost
+
+
+def _hypotheses(m: int, q: int) -> np.ndarray | None:
+    """The sets of q observations to leave out (H, q), or None when there are too many
+    (then the relaxation is done axis by axis, ``chain.relaxed_chain_at``)."""
+    if q == 0 or m == 0:
+        return np.zeros((1, 0), int)
+    if m <= q:
+        return np.arange(m)[None, :]
+    if math.comb(m, q) > MAX_HYPOTHESES:
+        return None
+    return np.array(list(itertools.combinations(range(m), q)), dtype=int)
+
+
+def _relax(
+    hard: np.ndarray, p: tuple[np.ndarray, np.ndarray], q: int, hyps: np.ndarray
+) -> np.ndarray:
+    """Boxes (2, B, H, n) of every hypothesis: the hard box met with the measurement
+    projections ``p`` (B, m, n) it keeps."""
+    lo = leave_out(p[0], q, hyps, True)
+    out = np.empty((2,) + lo.shape)
+    np.maximum(hard[0][:, None, :], lo, out=out[0])
+    np.minimum(hard[1][:, None, :], leave_out(p[1], q, hyps, False), out=out[1])
+    return out
+
+
+def _solve_pieces(
+    p: WindowProblem,
+    hc,
+    hth,
+    hph,
+    q: int,
+    half_a: float,
+    beta_c: float,
+    iterations: int,
+    tol: float,
+):
+    """The window for every piece at once: boxes (2, B, n), dead pieces (B,), and the
+    observations proven inconsistent (B, m)."""
+    b, n = hc.shape[1], p.theta.shape[0]
+    m = p.at.shape[0]
+    at, own = p.at, p.own
+    cols = np.arange(m)
+    rx, ry = np.where(own, OX, AX), np.where(own, OY, AY)
+    o_own = np.flatnonzero(own)
+    t_at = p.theta[at]
+    hyps = _hypotheses(m, q)
+    x = np.repeat(p.hx[:, None, :], b, axis=1)
+    y = np.repeat(p.hy[:, None, :], b, axis=1)
+    th, c, ph = hth.copy(), hc.copy(), hph.copy()
+    c = _meet(c, chain_k(c[0], c[1], -p.dc, p.dc))
+    obs = np.repeat(p.obs[:, :, None, :], b, axis=2)  # (7, 2, B, m)
+    dcl, dch = -p.dc, p.dc
+    bad = np.zeros((b, m), bool)
+    at_state = at[:, None] == np.arange(n)[None, :]  # (m, n)
+    dead = np.zeros(b, bool)
+    for _ in range(iterations):
+        old = np.concatenate([x, y, c])
+        tl, tu = K.add(p.theta + c[0], p.theta + c[1], -half_a - GUARD, half_a + GUARD)
+        th = _meet(th, (tl, tu))
+        ph = _meet(ph, _widen(th, beta_c))
+        th = _meet(th, _widen(ph, beta_c))
+        wl, wh = K.add(c[0, :, :-1], c[1, :, :-1], dcl, dch)
+        vl, vh = K.add(c[0, :, 1:], c[1, :, 1:], dcl, dch)
+        dx_l, dx_h, dy_l, dy_h = displacements(
+            p.theta[:-1], p.hmin, p.hmax, np.maximum(wl, vl), np.minimum(wh, vh),
+            half_a, p.l_lo, p.l_hi, p.slack, p.cap,
+        )  # fmt: skip
+        x = _meet(x, chain_k(x[0], x[1], dx_l, dx_h))
+        y = _meet(y, chain_k(y[0], y[1], dy_l, dy_h))
+        dead |= _dead(x, y, th, c) | _dead(ph)
+        if m == 0 or dead.all():
+            break
+        live = ~dead
+        if dead.any():  # dead pieces get a harmless stand-in (kernels want non-empty operands)
+            ref = int(np.argmax(live))
+            for v in (x, y, th, c, ph):
+                v[:, dead] = v[:, ref : ref + 1]
+        obs[rx, :, :, cols] = x[:, :, at].transpose(2, 0, 1)
+        obs[ry, :, :, cols] = y[:, :, at].transpose(2, 0, 1)
+        obs[OTH, :, :, o_own] = ph[:, :, at[o_own]].transpose(2, 0, 1)
+        con, bad = contract_observation(obs)
+        bx = con[rx, :, :, cols].transpose(1, 2, 0)  # (2, B, m)
+        by = con[ry, :, :, cols].transpose(1, 2, 0)
+        bf = np.where(own, con[OTH], np.array([-_INF, _INF])[:, None, None])  # camera heading
+        bf = np.where(bad, np.array([_INF, -_INF])[:, None, None], bf)
+        bt = _widen(bf, beta_c)
+        bc = np.stack(K.sub(bt[0], bt[1], t_at - half_a - GUARD, t_at + half_a + GUARD))
+        px = projections((bx[0], bx[1]), at, (dx_l, dx_h))
+        py = projections((by[0], by[1]), at, (dy_l, dy_h))
+        steps = (np.broadcast_to(dcl, dx_l.shape), np.broadcast_to(dch, dx_l.shape))
+        pc = projections((bc[0], bc[1]), at, steps)
+        pf = (
+            np.where(at_state, bf[0][..., None], -_INF),
+            np.where(at_state, bf[1][..., None], _INF),
+        )
+        if hyps is None:  # too many hypotheses: axis by axis
+            x = _meet(x, relaxed_chain_at((x[0], x[1]), (bx[0], bx[1]), at, (dx_l, dx_h), q))
+            y = _meet(y, relaxed_chain_at((y[0], y[1]), (by[0], by[1]), at, (dy_l, dy_h), q))
+            c = _meet(c, relaxed_chain_at((c[0], c[1]), (bc[0], bc[1]), at, (dcl, dch), q))
+            ph = _meet(ph, _relaxed_per_state(bf[0], bf[1], at, n, q))
+            th = _meet(th, _widen(ph, beta_c))
+            dead |= _dead(x, y, th, c) | _dead(ph)
+        else:  # every hypothesis jointly: a state box per hypothesis, then their hull
+            hx, hy = _relax(x, px, q, hyps), _relax(y, py, q, hyps)
+            hcc, hf = _relax(c, pc, q, hyps), _relax(ph, pf, q, hyps)
+            tl, tu = K.add(p.theta + hcc[0], p.theta + hcc[1], -half_a - GUARD, half_a + GUARD)
+            ht = _meet(_meet(th[:, :, None, :], (tl, tu)), _widen(hf, beta_c))
+            hf = _meet(hf, _widen(ht, beta_c))
+            hcc = _meet(
+                hcc, K.sub(ht[0], ht[1], p.theta - half_a - GUARD, p.theta + half_a + GUARD)
+            )
+            alive = ~(_dead4(hx) | _dead4(hy) | _dead4(hcc) | _dead4(ht) | _dead4(hf))  # (B, H)
+            dead |= ~alive.any(axis=1)
+            if dead.all():
+                break
+            x, y, c, th, ph = (_hull(v, alive) for v in (hx, hy, hcc, ht, hf))
+            named = np.all(np.where(alive[:, :, None], _excluded(hyps, m)[None], True), axis=1)
+            bad = bad | named
+        if dead.all():
+            break
+        new = np.concatenate([x, y, c])
+        lv = ~dead
+        w_old, w_new = (old[1::2] - old[0::2])[:, lv], (new[1::2] - new[0::2])[:, lv]
+        with np.errstate(invalid="ignore"):
+            shrink = np.where(np.isfinite(w_old), (w_old - w_new) / np.maximum(w_old, 1e-9), 1.0)
+        if float(np.max(np.nan_to_num(shrink, nan=0.0), initial=0.0)) <= tol:
+            break
+    return x, y, th, c, dead, bad
+
+
+def _dead4(h: np.ndarray) -> np.ndarray:
+    """(2, B, H, n) -> (B, H): some state empty."""
+    return np.any(~(h[0] <= h[1]), axis=-1)
+
+
+def _hull(h: np.ndarray, alive: np.ndarray) -> np.ndarray:
+    """Hull over the live hypotheses (axis 2) of (2, B, H, n) -> (2, B, n)."""
+    a = alive[:, :, None]
+    out = np.empty((2, h.shape[1], h.shape[3]))
+    np.min(np.where(a, h[0], _INF), axis=1, out=out[0])
+    np.max(np.where(a, h[1], -_INF), axis=1, out=out[1])
+    return out
+
+
+def _excluded(hyps: np.ndarray, m: int) -> np.ndarray:
+    """(H, m): whether hypothesis h leaves observation j out."""
+    out = np.zeros((hyps.shape[0], m), bool)
+    for col in range(hyps.shape[1]):
+        out[np.arange(hyps.shape[0]), hyps[:, col]] = True
+    return out
+
+
+def solve_window(
+    p: WindowProblem,
+    q: int,
+    half_a: float,
+    iterations: int,
+    tol: float,
+    beta_c: float = 0.0,
+    piece_rad: float = 0.1,
+    max_pieces: int = 8,
+    sectors: int = 24,
+) -> WindowSolution:
+    """Contract the window ``p`` with up to ``q`` observations relaxed, the newest
+    camera heading cut into pieces (module doc). ``half_a`` is half the heading
+    transient, ``beta_c`` the bound of the bearing error common to one instant."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        hc, hth, hph, lost = _pieces(p, half_a, beta_c, piece_rad, max_pieces, sectors)
+        x, y, th, c, dead, bad = _solve_pieces(p, hc, hth, hph, q, half_a, beta_c, iterations, tol)
+    live = np.flatnonzero(~dead)
+    m = p.at.shape[0]
+    b = hc.shape[1]
+    if live.size == 0:
+        return WindowSolution(x[:, 0], y[:, 0], th[:, 0], c[:, 0], np.ones(m, bool), True, lost, b)
+    if lost:  # one representation: the circle without the largest gap between sectors
+        mids = (0.5 * (hph[0, :, -1] + hph[1, :, -1]))[live]
+        order = np.sort(mids)
+        gaps = np.diff(np.append(order, order[0] + TWO_PI))
+        start = order[(int(np.argmax(gaps)) + 1) % order.size] - np.pi / b
+        s_lo, s_hi = K.two_pi_times(-np.floor((mids - start) / TWO_PI))
+        th = np.stack(K.add(th[0][live], th[1][live], s_lo[:, None], s_hi[:, None]))
+        c = np.stack(K.add(c[0][live], c[1][live], s_lo[:, None], s_hi[:, None]))
+    else:
+        th, c = th[:, live], c[:, live]
+    x, y = x[:, live], y[:, live]
+    hull = [np.stack([v[0].min(axis=0), v[1].max(axis=0)]) for v in (x, y, th, c)]
+    return WindowSolution(*hull, np.all(bad[live], axis=0), False, lost, b)

@@ -1,0 +1,212 @@
+"""Velocity odometry with guaranteed bounds for the real-robot window solver: the
+commanded (v, w) of a robot (MRCLAM's odometry files, a Pioneer's cmd_vel) integrated
+between two instants, and the bounded error model that turns it into interval
+constraints between consecutive states (``localization.cp_rb_solve``).
+
+**Integration.** Commands are held between their stamps (zero-order hold) and act
+``lag_s`` after them (MRCLAM: the motion trails the commands by 0.16-0.20 s). Over a
+step the integrator gives the commanded path length S = int v, the heading change
+H = int w, the lowest and highest commanded heading reached inside the step (relative to
+its start), the turn int |w|, and U, the time during which no command was fresh (older
+than ``max_hold_s``, or none yet) and the motion is only bounded by the speed caps.
+
+**Heading error model.** The error of the integrated heading E(t) = theta(t) - H(t) is a
+slow drift plus a bounded transient (the response to each command change):
+E = c + s with |s| <= a/2 and |c(t1) - c(t0)| <= b |t1 - t0| + r int |w| + w_cap U
+(a drift rate b and a fraction r of the commanded turn). This is equivalent to the pair
+condition |E(t1) - E(t0)| <= a + b dt + r int|w| over every pair of instants, which is
+what the data shows (transients do not add up step after step); the solver carries c as
+an exact chain and s per state, so a window of many short steps is not charged a per
+step. Per step the offset increment bound is ``dc`` below.
+
+**Position error model.** The displacement over a step is D = int v u(theta) with u the
+unit vector, so each component lies in L * cos(Phi) (resp. sin), L = int v >= 0 the true
+path length and Phi the hull of the headings inside the step, plus a slack e for pushes
+and sideways motion; L is within [L_lo, L_hi] of the commanded S, and |D| per axis is
+below ``v_cap dt + e`` (a speed cap). Phi = Theta_k + [hmin, hmax] + c + s with c inside
+both end states' offsets widened by ``dc``.
+
+Bounds come from ``RangeBearingCPConfig`` (``localization.cp_config``), which documents
+how their defaults were derived.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from localization import interval_kernels as K
+
+#: Covers the rounding of sums of commanded headings (for |Theta| < 1e4 rad the sums'
+#: rounding is below 1e-12 rad; the model's own bounds are 1e-3 rad and more).
+GUARD = 1e-9
+
+
+@dataclass
+class StepIntegral:
+    """Commanded motion over one step (seconds, metres, radians)."""
+
+    dt: float = 0.0
+    s: float = 0.0  # int v
+    h: float = 0.0  # int w
+    hmin: float = 0.0  # lowest int w reached inside the step (<= 0)
+    hmax: float = 0.0  # highest (>= 0)
+    turn: float = 0.0  # int |w|
+    unknown: float = 0.0  # time without a fresh command
+
+
+def combine(a: StepIntegral, b: StepIntegral) -> StepIntegral:
+    """The integral over two consecutive steps (``a`` then ``b``)."""
+    return StepIntegral(
+        a.dt + b.dt, a.s + b.s, a.h + b.h, min(a.hmin, a.h + b.hmin), max(a.hmax, a.h + b.hmax),
+        a.turn + b.turn, a.unknown + b.unknown,
+    )  # fmt: skip
+
+
+class CommandIntegrator:
+    """Streams stamped commands (in time order) and integrates them up to any instant;
+    :meth:`take` returns the integral since the last take and starts a new step."""
+
+    def __init__(self, lag_s: float, max_hold_s: float) -> None:
+        self.lag = float(lag_s)
+        self.max_hold = float(max_hold_s)
+        self._pending: deque[tuple[float, float, float]] = deque()
+        self.t: float | None = None  # integrated up to here
+        self._v = self._w = 0.0
+        self._t_cmd: float | None = None  # when the command in force took effect
+        self.heading = 0.0  # int w since the first instant (absolute)
+        self._step = StepIntegral()
+        self.skipped = 0  # commands out of order or not finite
+
+    def command(self, t: float, v: float, w: float) -> None:
+        te = t + self.lag
+        if not (np.isfinite(te) and np.isfinite(v) and np.isfinite(w)) or (
+            self._pending and te < self._pending[-1][0]
+        ):
+            self.skipped += 1
+            return
+        self._pending.append((te, float(v), float(w)))
+
+    def _run(self, t1: float) -> None:
+        """Integrate the command in force from ``self.t`` to ``t1``."""
+        t0 = self.t
+        if t1 <= t0:
+            return
+        st = self._step
+        dt = t1 - t0
+        if self._t_cmd is None:
+            stale = dt
+        else:
+            stale = max(0.0, t1 - max(t0, self._t_cmd + self.max_hold))
+            st.s += self._v * dt
+            st.h += self._w * dt
+            st.turn += abs(self._w) * dt
+            self.heading += self._w * dt
+            st.hmin, st.hmax = min(st.hmin, st.h), max(st.hmax, st.h)
+        st.dt += dt
+        st.unknown += stale
+        self.t = t1
+
+    def advance(self, t: float) -> None:
+        """Integrate up to ``t`` (never backwards)."""
+        if self.t is None:
+            self.t = float(t)
+        p = self._pending
+        while p and p[0][0] <= t:
+            te, v, w = p.popleft()
+            if te > self.t:
+                self._run(te)
+            self._v, self._w, self._t_cmd = v, w, te
+        if t > self.t:
+            self._run(float(t))
+
+    def peek(self) -> StepIntegral:
+        """The integral since the last :meth:`take` (a copy)."""
+        s = self._step
+        return StepIntegral(s.dt, s.s, s.h, s.hmin, s.hmax, s.turn, s.unknown)
+
+    def take(self) -> StepIntegral:
+        out, self._step = self._step, StepIntegral()
+        return out
+
+
+@dataclass(frozen=True)
+class StepBounds:
+    """Interval data of a step, as the solver uses it."""
+
+    dc: float  # offset increment bound (rad)
+    hmin: float  # commanded heading hull inside the step, relative to its start (rad)
+    hmax: float
+    l_lo: float  # path length bounds (m)
+    l_hi: float
+    slack: float  # per-axis slack (m)
+    cap: float  # per-axis displacement cap (m)
+
+
+def step_bounds(st: StepIntegral, cfg) -> StepBounds:
+    """The error model of the module doc with the bounds of ``cfg``
+    (a ``RangeBearingCPConfig``)."""
+    b = bounds_arrays(
+        np.array([st.dt]), np.array([st.s]), np.array([st.turn]), np.array([st.unknown]), cfg
+    )
+    return StepBounds(float(b[0][0]), st.hmin, st.hmax, *(float(v[0]) for v in b[1:]))
+
+
+def bounds_arrays(dt, s, turn, unknown, cfg) -> tuple[np.ndarray, ...]:
+    """(dc, l_lo, l_hi, slack, cap) of steps given as arrays (module doc's model)."""
+    dc = cfg.heading_drift_radps * dt + cfg.heading_turn_rel * turn
+    dc = dc + cfg.yaw_rate_cap_radps * unknown + GUARD
+    p = cfg.path_abs_m + cfg.path_drift_mps * dt
+    l_hi = (1.0 + cfg.speed_rel_hi) * s + p + cfg.speed_cap_mps * unknown
+    l_lo = np.where(unknown > 0.0, 0.0, np.maximum(0.0, (1.0 - cfg.speed_rel_lo) * s - p))
+    slack = cfg.slack_abs_m + cfg.slack_drift_mps * dt
+    cap = cfg.speed_cap_mps * dt + cfg.slack_abs_m
+    return dc, l_lo, l_hi, slack, cap
+
+
+def displacements(
+    theta0: np.ndarray,
+    hmin: np.ndarray,
+    hmax: np.ndarray,
+    c_lo: np.ndarray,
+    c_hi: np.ndarray,
+    half_a: float,
+    l_lo: np.ndarray,
+    l_hi: np.ndarray,
+    slack: np.ndarray,
+    cap: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Intervals (dx_lo, dx_hi, dy_lo, dy_hi) of steps whose headings lie in
+    ``theta0 + [hmin, hmax] + [c_lo, c_hi] +- half_a`` (the offset already widened by
+    the step's dc), path lengths in [l_lo, l_hi] (>= 0)."""
+    pl, ph = K.add(theta0 + hmin, theta0 + hmax, c_lo, c_hi)
+    pl, ph = K.add(pl, ph, -half_a - GUARD, half_a + GUARD)
+    cl, ch, sl, sh = K.cos_sin(pl, ph)
+    xl, xh = K.mul(l_lo, l_hi, cl, ch)
+    yl, yh = K.mul(l_lo, l_hi, sl, sh)
+    xl, xh = K.add(xl, xh, -slack, slack)
+    yl, yh = K.add(yl, yh, -slack, slack)
+    return np.maximum(xl, -cap), np.minimum(xh, cap), np.maximum(yl, -cap), np.minimum(yh, cap)
+
+
+def predict_boxes(b: np.ndarray, theta0: np.ndarray, steps: list[StepIntegral], cfg) -> np.ndarray:
+    """Boxes (N, 2, 3) of x, y, heading after ``steps`` from solved states ``b``
+    (N, 2, 4: x, y, th, c; lo row, hi row) whose commanded headings are ``theta0``: the
+    step model of the module doc forward (what a robot publishes between observations)."""
+    f = np.array([(s.dt, s.s, s.h, s.hmin, s.hmax, s.turn, s.unknown) for s in steps]).T
+    dt, s, h, hmin, hmax, turn, unknown = f.reshape(7, -1)
+    dc, l_lo, l_hi, slack, cap = bounds_arrays(dt, s, turn, unknown, cfg)
+    half_a = 0.5 * cfg.heading_transient_rad
+    cl, ch = K.add(b[:, 0, 3], b[:, 1, 3], -dc, dc)
+    dxl, dxh, dyl, dyh = displacements(theta0, hmin, hmax, cl, ch, half_a, l_lo, l_hi, slack, cap)
+    out = np.empty((b.shape[0], 2, 3))
+    out[:, 0, 0], out[:, 1, 0] = K.add(b[:, 0, 0], b[:, 1, 0], dxl, dxh)
+    out[:, 0, 1], out[:, 1, 1] = K.add(b[:, 0, 1], b[:, 1, 1], dyl, dyh)
+    # heading: through the offset, and from the state's own heading
+    tl, th = K.add(theta0 + h + cl, theta0 + h + ch, -half_a - GUARD, half_a + GUARD)
+    w = dc + np.where(dt > 0.0, 2.0 * half_a, 0.0) + GUARD  # no transient at the state itself
+    dl, dh = K.add(b[:, 0, 2] + h, b[:, 1, 2] + h, -w, w)
+    out[:, 0, 2], out[:, 1, 2] = np.maximum(tl, dl), np.minimum(th, dh)
+    return out
