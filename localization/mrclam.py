@@ -120,6 +120,12 @@ def _sorted(a: np.ndarray) -> np.ndarray:
     return a[np.argsort(a[:, 0], kind="stable")] if len(a) else a
 
 
+def robot_subjects(directory: str | Path) -> list[int]:
+    """The robots' subject numbers that have a ``RobotN_Odometry.dat`` in ``directory``."""
+    d = Path(directory)
+    return sorted(int(m.group(1)) for p in d.iterdir() if (m := _ROBOT_FILE.match(p.name)))
+
+
 def load_mrclam(directory: str | Path, robots: list[int] | None = None) -> MrclamRun:
     """Read an MRCLAM run directory (all robots found, or only ``robots``)."""
     d = Path(directory)
@@ -129,7 +135,7 @@ def load_mrclam(directory: str | Path, robots: list[int] | None = None) -> Mrcla
     barcodes = {int(b): int(s) for s, b in codes}
     marks = _table(d / LANDMARKS_FILE, 5)
     landmarks = {int(r[0]): (float(r[1]), float(r[2]), float(r[3]), float(r[4])) for r in marks}
-    found = sorted(int(m.group(1)) for p in d.iterdir() if (m := _ROBOT_FILE.match(p.name)))
+    found = robot_subjects(d)
     subjects = found if robots is None else list(robots)
     if not subjects:
         raise MrclamError(f"{d}: no RobotN_Odometry.dat files")

@@ -32,7 +32,6 @@ robot's first odometry message of the log, what a robot's config ``initial_pose`
 from __future__ import annotations
 
 import heapq
-import re
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -47,7 +46,6 @@ from msgs import GroundTruth, LandmarkMap, Pose2D, RangeBearing, VelocityOdometr
 
 TOPICS = ("landmark_map", "truth", "velocity", "landmark_range_bearing", "peer_range_bearing")
 _ORDER = {t: i for i, t in enumerate(TOPICS)}
-_ROBOT_FILE = re.compile(r"Robot(\d+)_Odometry\.dat$")
 
 
 def robot_name(subject: int) -> str:
@@ -119,11 +117,10 @@ def import_mrclam(
     compression: str = "zstd",
 ) -> MrclamImportReport:
     """Write the run (or ``seconds`` of it from ``start_s`` after its start) to ``out``."""
-    from localization.mrclam import MAX_TRUTH_GAP_S, load_mrclam
+    from localization.mrclam import MAX_TRUTH_GAP_S, load_mrclam, robot_subjects
 
     run = load_mrclam(directory, robots)  # MrclamError (a ValueError) names the problem
-    d = Path(directory)
-    robot_subjects = {int(m.group(1)) for p in d.iterdir() if (m := _ROBOT_FILE.match(p.name))}
+    present = set(robot_subjects(directory))
     subjects = sorted(run.robots)
     names = [robot_name(n) for n in subjects]
     lo = int(to_ns(np.array([run.start_s]))[0]) + int(round(start_s * 1e9))
@@ -143,7 +140,7 @@ def import_mrclam(
     streams: list[Iterator[Item]] = []
     meta = {
         "dataset": "mrclam",
-        "source": d.name,
+        "source": Path(directory).name,
         "robots": ",".join(names),
         "plan": "",
         "reference": "truth",
@@ -185,7 +182,7 @@ def import_mrclam(
         meas, mns = rr.measurements[k], m_ns[k]
         subj = meas[:, 1].astype(int)
         is_lm = np.isin(subj, ids)
-        is_rb = ~is_lm & np.isin(subj, sorted(robot_subjects - {n}))
+        is_rb = ~is_lm & np.isin(subj, sorted(present - {n}))
         rep.dropped[f"{name}_self_measurement"] += int(np.sum(subj == n))
         rep.dropped[f"{name}_unknown_subject"] += int(np.sum(~is_lm & ~is_rb & (subj != n)))
         for topic, sel, tname, landmark in (
