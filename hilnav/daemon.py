@@ -32,6 +32,7 @@ from hilnav.bus import Bus, ZenohSettings, zenoh_problem
 from hilnav.config import RobotConfig
 from hilnav.devices import make_drivers, with_fake_ports
 from hilnav.fakeset import FakeProcess, FakeProcessError
+from hilnav.log.encoding import stamp_of
 from hilnav.motion import MotionGuard
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
@@ -83,7 +84,9 @@ class Daemon:
         self.stats = DaemonStats()
         self.errors: list[str] = []
         self._fault_kinds: set[tuple[str, str]] = set()
-        self.pipeline = Pipeline(cfg, on_mapping=self._from_mapping, on_fault=self._fault)
+        self.pipeline = Pipeline(
+            cfg, on_mapping=self._from_mapping, on_fault=self._fault, on_output=self._from_service
+        )
         self.motion = MotionGuard(cfg.cmd_vel.limits(), self._on_motion_stop, self._fault)
         self.peers = PeerTable(cfg.services.localization.peer_timeout_s)
         self._q: queue.Queue[_Item] = queue.Queue(maxsize=queue_size)
@@ -93,6 +96,7 @@ class Daemon:
         self.bus: Bus | None = None
         self.log: Any = None
         self.sinks = Sinks(sinks or {}, self._fault)  # + "log" when the log opens
+        self._log_topics: dict[str, str] = {}  # topic -> /<robot>/<topic>
         self.fake: FakeProcess | None = None
         self._loop_thread: threading.Thread | None = None
         self._stopped = False
@@ -258,6 +262,10 @@ class Daemon:
     def _from_mapping(self, topic: str, msg: Any, recv_ns: Any) -> None:
         self._emit(topic, msg, int(recv_ns or time.time_ns()), publish=not self._stop.is_set())
 
+    def _from_service(self, topic: str, msg: Any, recv_ns: Any) -> None:
+        """A service's output, the moment it is made (the pose before CP runs)."""
+        self._emit(topic, msg, int(recv_ns or time.time_ns()), publish=not self._stop.is_set())
+
     def _fault(self, where: str, exc: BaseException) -> None:
         """Count a fault, keep it for diagnostics, print its first occurrence per kind."""
         self.stats.faults[where] = self.stats.faults.get(where, 0) + 1
@@ -315,8 +323,7 @@ class Daemon:
         if topic == "info":
             self.pipeline.latest["info"] = msg
         self._emit(topic, msg, item.recv_ns, publish)
-        for t, m in self.pipeline.feed(topic, msg, item.recv_ns):
-            self._emit(t, m, item.recv_ns, publish)
+        self.pipeline.feed(topic, msg, item.recv_ns)  # outputs: self._from_service
 
     def _handle_peer(self, item: _Item) -> None:
         now = time.monotonic()
@@ -330,13 +337,26 @@ class Daemon:
             self._emit(t, m, item.recv_ns)
 
     def _emit(self, topic: str, msg: Any, log_ns: int, publish: bool = True) -> None:
+        """Publish (if ``topic`` is published) and log one message, encoded once: the bus
+        sends the log's native record."""
+        records = None
+        if self.sinks:
+            mcap_topic = self._log_topics.get(topic)
+            if mcap_topic is None:
+                mcap_topic = self._log_topics[topic] = log_topic(self.robot, topic)
+            records = self.sinks.encode(mcap_topic, msg)
         if publish and topic in PUBLISHED and self.bus is not None:
             try:
-                self.bus.publish(topic, msg)
+                if records:
+                    native = records[0]
+                    self.bus.put_encoded(self.robot, topic, native.data, native.schema_name)
+                else:
+                    self.bus.publish(topic, msg)
                 self.stats.published += 1
             except Exception as exc:
                 self._fault("bus", exc)
-        self._log(log_topic(self.robot, topic), msg, log_ns)
+        if records and self.sinks.write_records(records, log_ns, stamp_of(msg)):
+            self.stats.logged += 1
 
     def _log(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
         """To every sink (log, live view). Log time = when the daemon received the message
