@@ -45,7 +45,7 @@ class DaemonError(RuntimeError):
     """The daemon cannot start (fakes, log directory, Zenoh): the message says why."""
 
 
-@dataclass
+@dataclass(slots=True)
 class _Item:
     topic: str
     msg: Any
@@ -89,7 +89,10 @@ class Daemon:
         )
         self.motion = MotionGuard(cfg.cmd_vel.limits(), self._on_motion_stop, self._fault)
         self.peers = PeerTable(cfg.services.localization.peer_timeout_s)
-        self._q: queue.Queue[_Item] = queue.Queue(maxsize=queue_size)
+        # SimpleQueue: put and get in C, no Python-level condition per message; the bound
+        # (messages dropped beyond it) is checked on its size
+        self._q: queue.SimpleQueue[_Item] = queue.SimpleQueue()
+        self._queue_size = queue_size
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self.drivers: dict[str, Any] = {}
@@ -205,10 +208,10 @@ class Daemon:
 
     # -- producers (device threads, Zenoh threads, the watchdog) ----------------------------------
     def _put(self, topic: str, msg: Any, peer: str = "") -> None:
-        try:
-            self._q.put_nowait(_Item(topic, msg, time.time_ns(), peer))
-        except queue.Full:
+        if self._q.qsize() >= self._queue_size:
             self.stats.dropped += 1
+            return
+        self._q.put(_Item(topic, msg, time.time_ns(), peer))
 
     def _raw_hook(self, device: str):
         if not self.cfg.log.raw or not self.cfg.log.enabled:

@@ -54,15 +54,16 @@ class MappingWorker:
         self.on_fault = on_fault
         self.latest = latest
         self.dropped = 0
-        self._q: queue.Queue[tuple[str, Any, Any]] = queue.Queue(maxsize=queue_size)
+        self._q: queue.SimpleQueue[tuple[str, Any, Any]] = queue.SimpleQueue()
+        self._queue_size = queue_size
         self._thread = threading.Thread(target=self._loop, name="mapping", daemon=True)
         self._thread.start()
 
     def put(self, topic: str, msg: Any, tag: Any) -> None:
-        try:
-            self._q.put_nowait((topic, msg, tag))
-        except queue.Full:
+        if self._q.qsize() >= self._queue_size:
             self.dropped += 1
+            return
+        self._q.put((topic, msg, tag))
 
     def _loop(self) -> None:
         while True:
