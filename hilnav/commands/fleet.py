@@ -26,9 +26,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
-from hilnav.bus import free_tcp_port
 from hilnav.errors import CliError
 
 METHODS = ("ekf", "single_cp", "multi_cp")
@@ -93,6 +90,8 @@ def _read_line(proc: subprocess.Popen, timeout_s: float) -> str | None:
 
 def summarize(results: list[dict], dt: float) -> dict:
     """The benchmark's JSON from the robots' result files."""
+    import numpy as np
+
     out: dict = {}
     for m in METHODS:
         out[f"{m}_area"] = round(sum(r[f"{m}_area"] for r in results), 4)
@@ -110,6 +109,7 @@ def summarize(results: list[dict], dt: float) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from fakes.world.paper_scenario import paper_robots
+    from hilnav.bus import free_tcp_port
 
     if args.robots < 1 or args.robots > 12:
         raise CliError(f"--robots {args.robots}: use 1 to 12")
