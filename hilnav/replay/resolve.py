@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from hilnav.log.reader import iter_raw
+from hilnav.log.reader import topic_counts
 from hilnav.topics import SERVICE_INPUTS, split_log_topic
 
 PIPELINES = ("auto", "daemon", "landmark-slam")
@@ -19,10 +19,10 @@ def guess_robot(path: str | Path, meta: dict[str, str]) -> str:
     if meta.get("robot"):
         return meta["robot"]
     counts: Counter = Counter()
-    for r in iter_raw(path):
-        robot, kind = split_log_topic(r.topic)
+    for topic, n in topic_counts(path).items():
+        robot, kind = split_log_topic(topic)
         if robot and kind in SERVICE_INPUTS:
-            counts[robot] += 1
+            counts[robot] += n
     if not counts:
         raise ValueError("no device messages (odometry, gyro, gps, ir) in this log")
     return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))[0][0]
@@ -62,9 +62,7 @@ def choose_pipeline(
             name = "landmark-slam"
         else:
             kinds = {
-                split_log_topic(r.topic)[1]
-                for r in iter_raw(src)
-                if split_log_topic(r.topic)[0] == robot
+                split_log_topic(t)[1] for t in topic_counts(src) if split_log_topic(t)[0] == robot
             }
             if kinds & {"control", "landmark_scan"} and "odometry" not in kinds:
                 name = "landmark-slam"
