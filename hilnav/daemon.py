@@ -93,6 +93,7 @@ class Daemon:
         # (messages dropped beyond it) is checked on its size
         self._q: queue.SimpleQueue[_Item] = queue.SimpleQueue()
         self._queue_size = queue_size
+        self._pending: dict[str, list[tuple[str, Any]]] = {}  # per device: one read's items
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self.drivers: dict[str, Any] = {}
@@ -213,13 +214,23 @@ class Daemon:
             return
         self._q.put(_Item(topic, msg, time.time_ns(), peer))
 
+    def _put_read(self, pending: list[tuple[str, Any]]) -> None:
+        """The items of one device read (its raw bytes, then its messages) as one queue
+        entry, received at one time: one hand-over to the service loop per read."""
+        if self._q.qsize() >= self._queue_size:
+            self.stats.dropped += len(pending)
+            return
+        now = time.time_ns()
+        self._q.put([_Item(topic, msg, now) for topic, msg in pending])
+
     def _raw_hook(self, device: str):
         if not self.cfg.log.raw or not self.cfg.log.enabled:
             return None
         topic = raw_topic(device)
+        pending = self._pending.setdefault(device, [])  # sent by the device's reader
 
         def hook(data: bytes, stamp_ns: int) -> None:
-            self._put(topic, RawBytes(stamp_ns, device, bytes(data), "rx"))
+            pending.append((topic, RawBytes(stamp_ns, device, bytes(data), "rx")))
 
         return hook
 
@@ -230,17 +241,21 @@ class Daemon:
             drv.last_error = str(exc)
             self.errors.append(f"{name}: {exc}")
             print(f"hilnav run: {name}: {exc} (retrying)", file=sys.stderr, flush=True)
+        pending = self._pending.setdefault(name, [])  # the raw hook's items, then ours
         while not self._stop.is_set():
             try:
                 got = drv.read(0.2)
             except Exception as exc:
                 drv.last_error = f"read failed: {exc!r}"
                 time.sleep(0.2)
-                continue
+                got = []
             for m in got:
                 topic = DEVICE_TOPICS.get(type(m))
                 if topic is not None:
-                    self._put(topic, m)
+                    pending.append((topic, m))
+            if pending:
+                self._put_read(pending)
+                pending.clear()
 
     def _on_cmd_vel(self, robot: str, cmd: VelocityCommand) -> None:
         if self._stop.is_set():
@@ -290,7 +305,10 @@ class Daemon:
                 item = self._q.get(timeout=0.05)
             except queue.Empty:
                 item = None
-            if item is not None:
+            if type(item) is list:  # one device read
+                for it in item:
+                    self._handle_safely(it)
+            elif item is not None:
                 self._handle_safely(item)
             now = time.monotonic()
             for robot in self.peers.expire(now):
@@ -314,7 +332,8 @@ class Daemon:
                 item = self._q.get_nowait()
             except queue.Empty:
                 return
-            self._handle_safely(item, publish=False)
+            for it in item if type(item) is list else [item]:
+                self._handle_safely(it, publish=False)
 
     def _handle(self, item: _Item, publish: bool = True) -> None:
         topic, msg = item.topic, item.msg
