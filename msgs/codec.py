@@ -18,7 +18,7 @@ plan per class (:mod:`msgs.fast`):
 
 - ``encode``: msgspec writes NaN and infinity as ``null``, so a payload with a ``null``
   that the message's ``None`` fields do not account for is made again by the reference
-  path (:func:`to_dict` + ``json``), which writes them as strings;
+  path (:func:`to_dict`, then msgspec), which writes them as strings;
 - ``decode``: msgspec checks the JSON and every type (bool is no int, floats finite,
   base64 valid, literals, tuple lengths, missing fields), then the plan's checks of the
   integers (64 bits, stamps not negative). Any payload the fast path refuses, or that
@@ -54,8 +54,16 @@ _I64 = 2**63
 
 
 def _plain(value: Any) -> Any:
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    t = type(value)  # the common exact types first, then the general rules
+    if t is float:
+        return value if value - value == 0.0 else _non_finite(value)
+    if t is int or t is str or t is bool or value is None:
+        return value
+    if t is tuple or t is list:
+        return [_plain(v) for v in value]
+    names = _field_names(t)
+    if names is not None:
+        return {name: _plain(getattr(value, name)) for name in names}
     if isinstance(value, bytes | bytearray | memoryview):
         return base64.b64encode(bytes(value)).decode("ascii")
     if isinstance(value, tuple | list):
@@ -63,11 +71,23 @@ def _plain(value: Any) -> Any:
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, float) and not math.isfinite(value):
-        # JSON has no inf/nan: encode as strings understood by decode().
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+        return _non_finite(value)
     if hasattr(value, "item") and callable(value.item):  # numpy scalar
         return _plain(value.item())
     return value
+
+
+def _non_finite(value: float) -> str:
+    # JSON has no inf/nan: encoded as strings understood by decode().
+    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+
+
+@cache
+def _field_names(cls: type) -> tuple[str, ...] | None:
+    """The field names of a dataclass type (None for any other type)."""
+    if not dataclasses.is_dataclass(cls):
+        return None
+    return tuple(f.name for f in dataclasses.fields(cls))
 
 
 def to_dict(msg: Any) -> dict[str, Any]:
@@ -87,7 +107,8 @@ def encode(msg: Any) -> bytes:
 
 
 def _encode_reference(msg: Any) -> bytes:
-    return json.dumps(_plain(msg), separators=(",", ":"), allow_nan=False).encode("utf-8")
+    """The message through :func:`to_dict` (non-finite floats as strings), then JSON."""
+    return ENCODER.encode(_plain(msg))
 
 
 class _Decoder(TypedReader):
