@@ -203,17 +203,19 @@ class RawRecord(NamedTuple):
     data: bytes
 
 
-def _raw_record(schema: Schema | None, channel: Channel, message: Message) -> RawRecord:
+def _raw_record(
+    schema: Schema | None, channel: Channel, log_ns: int, pub_ns: int, seq: int, data: bytes
+) -> RawRecord:
     return RawRecord(
         channel.topic,
         schema.name if schema else "",
         schema.encoding if schema else "",
         schema.data if schema else b"",
         channel.message_encoding,
-        message.log_time,
-        message.publish_time,
-        message.sequence,
-        message.data,
+        log_ns,
+        pub_ns,
+        seq,
+        data,
     )
 
 
@@ -244,18 +246,8 @@ def iter_raw(
     summary = _summary(path)
     if summary is not None and summary.chunk_indexes:
         with open(path, "rb") as f:
-            for schema, channel, log_ns, pub_ns, seq, data in iter_indexed(f, summary, wanted):
-                yield RawRecord(
-                    channel.topic,
-                    schema.name if schema else "",
-                    schema.encoding if schema else "",
-                    schema.data if schema else b"",
-                    channel.message_encoding,
-                    log_ns,
-                    pub_ns,
-                    seq,
-                    data,
-                )
+            for item in iter_indexed(f, summary, wanted):
+                yield _raw_record(*item)
         return
     if summary is not None:
         with open(path, "rb") as f:
@@ -263,7 +255,14 @@ def iter_raw(
             for schema, channel, message in reader.iter_messages(
                 topics=list(wanted) if wanted is not None else None, log_time_order=True
             ):
-                yield _raw_record(schema, channel, message)
+                yield _raw_record(
+                    schema,
+                    channel,
+                    message.log_time,
+                    message.publish_time,
+                    message.sequence,
+                    message.data,
+                )
         return
     res = ScanResult()
     schemas: dict[int, Schema] = {}
@@ -282,7 +281,7 @@ def iter_raw(
             if wanted is not None and ch.topic not in wanted:
                 continue
             sc = schemas.get(ch.schema_id)
-            yield _raw_record(sc, ch, rec)
+            yield _raw_record(sc, ch, rec.log_time, rec.publish_time, rec.sequence, rec.data)
     if stats is not None:
         stats.truncated = not res.complete
         stats.bad_chunks += res.bad_chunks
