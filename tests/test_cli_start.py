@@ -42,3 +42,28 @@ def test_the_cli_starts_without_heavy_modules(argv):
     )
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout.splitlines()[-1]) == []
+
+
+@pytest.mark.parametrize(
+    ("argv", "modules"),
+    [
+        (["--version"], []),
+        (["replay", "--help"], ["replay"]),
+        (["import", "--help"], ["importer"]),
+        (["--help"], "all"),
+    ],
+)
+def test_a_command_loads_only_its_own_module(argv, modules):
+    code = PROBE.format(argv=argv, heavy=("hilnav",)).replace(
+        'm.split(".")[0] in heavy', 'm.startswith("hilnav.commands.")'
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+        env=hilnav_env(), timeout=60,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    loaded = [m.rsplit(".", 1)[1] for m in json.loads(proc.stdout.splitlines()[-1])]
+    if modules == "all":
+        assert {"replay", "importer", "run", "fleet"} <= set(loaded)
+    else:
+        assert loaded == modules
