@@ -53,7 +53,7 @@ def same(a: object, b: object) -> bool:
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.__name__)
 @settings(
-    max_examples=25, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+    max_examples=20, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
 )
 @given(data=st.data())
 def test_fast_encode_and_decode_agree_with_the_reference(cls, data):
@@ -71,7 +71,7 @@ def test_fast_encode_and_decode_agree_with_the_reference(cls, data):
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.__name__)
 @settings(
-    max_examples=40, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+    max_examples=30, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow]
 )
 @given(data=st.data())
 def test_fast_decode_accepts_nothing_the_reference_refuses(cls, data):
