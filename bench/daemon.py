@@ -12,10 +12,17 @@ Prints, the LAST line a JSON object:
 - ``peak_rss_mb_daemon``: the daemon's peak resident memory (VmHWM), MiB;
 - ``pose_latency_ms_p50`` / ``_p99``: from the time the Pioneer's bytes were read (the
   odometry stamp, which the pose inherits) to the pose arriving in the second session;
+  split, from the log's receive times, into ``pose_hold_ms_*`` (the odometry received to
+  the input that released its pose received: the fusion filters hold an odometry message
+  until the next gyro sample, fusion.arrival rule 2) and ``pose_after_release_ms_*`` (that
+  input received to the pose arriving: the daemon's own work and Zenoh);
 - ``mcap_messages_per_s``: messages in the log (all topics, raw bytes and Foxglove views
   included) per second of run; ``dropped``: messages the daemon's queues dropped.
 
-    python bench/daemon.py [--seconds 60]
+``--without SERVICE`` (repeatable: heading, pose, localization, mapping) switches a service
+off, to tell the daemon's own costs from a service's.
+
+    python bench/daemon.py [--seconds 60] [--without mapping --without localization]
 """
 
 from __future__ import annotations
@@ -75,11 +82,16 @@ def output_dir(out: Path | None) -> tuple[Path, tempfile.TemporaryDirectory | No
     return out, None
 
 
-def start_daemon(out: Path, port: int) -> tuple[subprocess.Popen, Path]:
-    """``hilnav run`` on the embedded defaults, Zenoh on ``port``; returns it and its log."""
+def start_daemon(
+    out: Path, port: int, without: tuple[str, ...] = ()
+) -> tuple[subprocess.Popen, Path]:
+    """``hilnav run`` on the embedded defaults, Zenoh on ``port``, the services ``without``
+    off; returns it and its log."""
     cfg = out / "bench-robot.toml"
+    off = "".join(f"[services.{name}]\nenabled = false\n" for name in without)
     cfg.write_text(
         f'[zenoh]\nlisten = ["tcp/127.0.0.1:{port}"]\ngossip_scouting = true\n[log]\ndir = "{out}"\n'
+        + off
     )
     log = out / "bench.mcap"
     env = dict(os.environ)
@@ -100,15 +112,40 @@ class PoseLatencies:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self.values: list[float] = []
+        self.arrivals: dict[int, int] = {}  # pose stamp -> arrival, ns
 
     def on_pose(self, robot, msg) -> None:
         now = time.time_ns()
         with self._lock:
             self.values.append((now - msg.stamp_ns) * 1e-6)
+            self.arrivals[msg.stamp_ns] = now
 
     def clear(self) -> None:
         with self._lock:
             self.values.clear()
+            self.arrivals.clear()
+
+
+def latency_split(log: Path, arrivals: dict[int, int]) -> tuple[list[float], list[float]]:
+    """Per received pose, from the log: ms from its odometry's receipt to the receipt of
+    the input that released the pose (the pose's log time), and ms from then to arrival."""
+    from mcap.reader import make_reader
+
+    odometry: dict[int, int] = {}
+    released: dict[int, int] = {}
+    with open(log, "rb") as f:
+        for _, channel, m in make_reader(f).iter_messages(topics=["/r1/odometry", "/r1/pose"]):
+            (odometry if channel.topic == "/r1/odometry" else released)[m.publish_time] = m.log_time
+    hold, after = [], []
+    for stamp, arrived in arrivals.items():
+        if stamp in released and stamp in odometry:
+            hold.append((released[stamp] - odometry[stamp]) * 1e-6)
+            after.append((arrived - released[stamp]) * 1e-6)
+    return hold, after
+
+
+def percentile(values: list[float], q: float) -> float:
+    return round(float(np.percentile(values, q)), 2) if values else float("nan")
 
 
 def wait_for_robot(op: Operator, proc: subprocess.Popen, timeout_s: float = 60.0) -> bool:
@@ -174,10 +211,17 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="length of the run")
     ap.add_argument("--out", type=Path, default=None, help="keep the log in this directory")
+    ap.add_argument(
+        "--without",
+        action="append",
+        default=[],
+        choices=("heading", "pose", "localization", "mapping"),
+        help="switch this service off (repeatable)",
+    )
     args = ap.parse_args(argv)
     out, tmp = output_dir(args.out)
     port = free_tcp_port()
-    proc, log = start_daemon(out, port)
+    proc, log = start_daemon(out, port, tuple(args.without))
     op = Operator("r1", port)
     latencies = PoseLatencies()
     op.bus.subscribe("r1", "pose", latencies.on_pose)
@@ -188,8 +232,10 @@ def main(argv: list[str] | None = None) -> int:
     stdout, stderr = stop_daemon(op, proc)
     n_msgs, span_s = log_statistics(log)
     lat = np.array(latencies.values) if latencies.values else np.array([np.nan])
+    hold, after = latency_split(log, latencies.arrivals)
     result = {
         "bench": "daemon",
+        "services_off": sorted(args.without),
         "seconds": round(elapsed, 1),
         "exit_code": proc.returncode,
         "cpu_percent_daemon": round(100.0 * cpu / elapsed, 1),
@@ -197,6 +243,10 @@ def main(argv: list[str] | None = None) -> int:
         "peak_rss_mb_daemon": round(rss, 1),
         "pose_latency_ms_p50": round(float(np.percentile(lat, 50)), 2),
         "pose_latency_ms_p99": round(float(np.percentile(lat, 99)), 2),
+        "pose_hold_ms_p50": percentile(hold, 50),
+        "pose_hold_ms_p99": percentile(hold, 99),
+        "pose_after_release_ms_p50": percentile(after, 50),
+        "pose_after_release_ms_p99": percentile(after, 99),
         "poses_received": len(latencies.values),
         "mcap_messages": n_msgs,
         "mcap_messages_per_s": round(n_msgs / span_s, 1) if span_s > 0 else 0.0,

@@ -15,7 +15,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from numerics import ekf
 
@@ -24,6 +23,8 @@ def chi2_gate(probability: float | None, dof: int) -> float:
     """Chi-square gate on the NIS for ``dof`` dimensions at ``probability`` (None: off)."""
     if probability is None:
         return math.inf
+    from scipy.stats import chi2  # scipy.stats takes a second to import
+
     return float(chi2.ppf(probability, dof))
 
 

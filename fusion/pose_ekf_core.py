@@ -241,7 +241,9 @@ class PoseEkfCore:
         if not (np.all(np.isfinite(nu)) and np.all(np.isfinite(r))):
             self._count.bad_input += 1
             return UpdateResult(kind, False, math.nan, dof)
-        gate = self._gates.get(dof, self.params.gate(dof))
+        gate = self._gates.get(dof)
+        if gate is None:  # (a .get default would compute the quantile at every update)
+            gate = self._gates[dof] = self.params.gate(dof)
         x, pj, nis, accepted, repaired = joseph_update(self.x, self.P, nu, hj, r, gate)
         self.last_nis[kind] = nis
         if not accepted:

@@ -16,7 +16,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from msgs import GpsFix
 
@@ -90,6 +89,8 @@ class PoseEkfParams:
         """Chi-square gate on the NIS for a measurement of ``dof`` dimensions (inf: off)."""
         if self.gate_probability is None:
             return math.inf
+        from scipy.stats import chi2  # scipy.stats takes a second to import
+
         return float(chi2.ppf(self.gate_probability, dof))
 
     @property

@@ -1,7 +1,10 @@
 """The ``hilnav`` command line: one sub-command per module in ``hilnav.commands``.
 
 Each command module exposes ``register(subparsers)`` which adds its parser and sets
-``func`` to a callable taking the parsed arguments and returning an exit code.
+``func`` to a callable taking the parsed arguments and returning an exit code. The
+command modules import only the standard library at the top, their heavy dependencies
+(numpy, Zenoh, MCAP, the config) when their command runs; and ``hilnav CMD ...`` imports
+only CMD's module (``hilnav --version`` none): the CLI starts at once.
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ COMMANDS: tuple[str, ...] = (
     "hilnav.commands.fleet",
     "hilnav.commands.router",
 )
+# Commands whose module has another name.
+_MODULE_OF = {"import": "importer"}
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -59,20 +64,37 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _modules_for(argv: list[str] | None) -> tuple[str, ...]:
+    """The command modules ``argv`` needs: the named command's alone, none for a bare
+    ``--version``, every one otherwise (``--help``, no or an unknown command)."""
+    args = sys.argv[1:] if argv is None else argv
+    first = next((a for a in args if not a.startswith("-")), None)
+    if first is None:
+        helping = any(a in ("-h", "--help") for a in args)
+        return () if "--version" in args and not helping else COMMANDS
+    if any(a in ("-h", "--help") for a in args[: args.index(first)]):
+        return COMMANDS
+    module = f"hilnav.commands.{_MODULE_OF.get(first, first)}"
+    return (module,) if module in COMMANDS else COMMANDS
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser, with the sub-commands ``argv`` needs (every one when None)."""
     parser = _Parser(
         prog="hilnav",
         description="Drivers, emulated devices and navigation for a Pioneer 3-DX with cheap sensors.",
     )
     parser.add_argument("--version", action="version", version=f"hilnav {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMANDS:
+    for name in COMMANDS if argv is None else _modules_for(argv):
         importlib.import_module(name).register(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    if argv is None:
+        argv = sys.argv[1:]
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -1,11 +1,12 @@
 """The robot daemon: device threads, one service loop, the Zenoh bus and the MCAP log.
 
-One reader thread per device (drivers from :mod:`hilnav.devices`) puts every decoded
-message and the raw bytes of every read on ONE queue. One service loop takes them in
-arrival order, feeds the :class:`hilnav.pipeline.Pipeline` (its mapping worker runs in its
-own thread), and publishes and logs as :mod:`hilnav.topics` says; every
-``diagnostics_period_s`` it emits a msgs.DeviceDiagnostics per device and a
-msgs.DaemonStatus. ``cmd_vel`` from the fleet reaches the wheels through the
+One reader thread per device (drivers from :mod:`hilnav.devices`) puts the raw bytes of
+each read and its decoded messages on ONE queue, as one entry per read. One service loop
+(the :class:`hilnav.runtime.RobotRuntime`'s consumer) takes them in arrival order, feeds
+the :class:`hilnav.pipeline.Pipeline` (its mapping worker runs in its own thread), and
+publishes and logs as :mod:`hilnav.topics` says, each service output the moment it is
+made and each message encoded once for bus and log; every ``diagnostics_period_s`` it
+emits a msgs.DeviceDiagnostics per device and a msgs.DaemonStatus. ``cmd_vel`` from the fleet reaches the wheels through the
 :class:`hilnav.motion.MotionGuard`, whose watchdog thread stops the robot on a command
 timeout or a stalled loop. The fleet's pose boxes feed cooperative localization; peers
 come and go by :class:`hilnav.peers.PeerTable`. Every message logged also goes to the other
@@ -62,6 +63,7 @@ class Daemon:
         self.motion = MotionGuard(cfg.cmd_vel.limits(), self._on_motion_stop, self._fault)
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
+        self._pending: dict[str, list[tuple[str, Any]]] = {}  # per device: one read's items
         self.drivers: dict[str, Any] = {}
         self.fake: FakeProcess | None = None
         self._loop_thread: threading.Thread | None = None
@@ -183,9 +185,10 @@ class Daemon:
         if not self.cfg.log.raw or not self.cfg.log.enabled:
             return None
         topic = raw_topic(device)
+        pending = self._pending.setdefault(device, [])  # sent by the device's reader
 
         def hook(data: bytes, stamp_ns: int) -> None:
-            self._put(topic, RawBytes(stamp_ns, device, bytes(data), "rx"))
+            pending.append((topic, RawBytes(stamp_ns, device, bytes(data), "rx")))
 
         return hook
 
@@ -196,17 +199,22 @@ class Daemon:
             drv.last_error = str(exc)
             self.errors.append(f"{name}: {exc}")
             print(f"hilnav run: {name}: {exc} (retrying)", file=sys.stderr, flush=True)
+        pending = self._pending.setdefault(name, [])  # the raw hook's items, then ours
+        put_read = self.runtime.put_read
         while not self._stop.is_set():
             try:
                 got = drv.read(0.2)
             except Exception as exc:
                 drv.last_error = f"read failed: {exc!r}"
                 time.sleep(0.2)
-                continue
+                got = []
             for m in got:
                 topic = DEVICE_TOPICS.get(type(m))
                 if topic is not None:
-                    self._put(topic, m)
+                    pending.append((topic, m))
+            if pending:
+                put_read(pending)
+                pending.clear()
 
     def _on_cmd_vel(self, robot: str, cmd: VelocityCommand) -> None:
         if self._stop.is_set():

@@ -16,7 +16,10 @@ Wiring (see hilnav.services for each adapter):
 On a robot the mapping service runs in a :class:`MappingWorker` thread the pipeline owns
 (``Pipeline(cfg, on_mapping=...)``), fed the same inputs in the same order, so a slow
 data-association step never delays the pose; its outputs go to ``on_mapping(topic, msg,
-tag)`` with the ``tag`` of the input that caused them (the daemon's receive time).
+tag)`` with the ``tag`` of the input that caused them (the daemon's receive time). With
+``on_output`` every other output is also handed to ``on_output(topic, msg, tag)`` the
+moment its service made it, before the next service runs: the daemon publishes the pose
+before CP localization starts its step.
 """
 
 from __future__ import annotations
@@ -51,15 +54,16 @@ class MappingWorker:
         self.on_fault = on_fault
         self.latest = latest
         self.dropped = 0
-        self._q: queue.Queue[tuple[str, Any, Any]] = queue.Queue(maxsize=queue_size)
+        self._q: queue.SimpleQueue[tuple[str, Any, Any]] = queue.SimpleQueue()
+        self._queue_size = queue_size
         self._thread = threading.Thread(target=self._loop, name="mapping", daemon=True)
         self._thread.start()
 
     def put(self, topic: str, msg: Any, tag: Any) -> None:
-        try:
-            self._q.put_nowait((topic, msg, tag))
-        except queue.Full:
+        if self._q.qsize() >= self._queue_size:
             self.dropped += 1
+            return
+        self._q.put((topic, msg, tag))
 
     def _loop(self) -> None:
         while True:
@@ -92,8 +96,10 @@ class Pipeline:
         config: RobotConfig,
         on_mapping: MappingSink | None = None,
         on_fault: FaultSink | None = None,
+        on_output: MappingSink | None = None,
     ) -> None:
         self.config = config
+        self.on_output = on_output
         sv = config.services
         self.heading = HeadingAdapter(config) if sv.heading.enabled else None
         self.pose = PoseAdapter(config) if sv.pose.enabled else None
@@ -116,22 +122,25 @@ class Pipeline:
         if topic not in SERVICE_INPUTS:
             return []
         out: Outputs = []
-        if self.heading is not None:
-            out += self.heading.feed(topic, msg)
-        if self.pose is not None:
-            out += self.pose.feed(topic, msg)
-        if self.localization is not None:
-            out += self.localization.feed(topic, msg)
+        for service in (self.heading, self.pose, self.localization):
+            if service is not None:
+                self._take(service.feed(topic, msg), out, tag)
         if self.mapping is not None:
             for t, m in [*out, (topic, msg)]:
                 if t in ("heading", "ir"):
                     if self.worker is not None:
                         self.worker.put(t, m, tag)
                     else:
-                        out += self.mapping.feed(t, m)
-        for t, m in out:
-            self.latest[t] = m
+                        self._take(self.mapping.feed(t, m), out, tag)
         return out
+
+    def _take(self, outputs: Outputs, out: Outputs, tag: Any) -> None:
+        emit = self.on_output
+        for t, m in outputs:
+            self.latest[t] = m
+            out.append((t, m))
+            if emit is not None:
+                emit(t, m, tag)
 
     def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
         """Messages of other fleet robots (cooperative localization: their pose boxes)."""

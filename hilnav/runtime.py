@@ -7,20 +7,26 @@ by :mod:`hilnav.fleet.host`). The runtime owns:
 
 - the :class:`hilnav.pipeline.Pipeline` of the robot's config (its mapping worker, if
   any, hands its outputs back here);
-- ONE queue: :meth:`put` from any thread (device readers, Zenoh's callbacks), taken in
-  arrival order by one consumer (:meth:`next` + :meth:`handle`, or :meth:`drain`);
+- ONE queue (a ``queue.SimpleQueue``: put and get in C; its bound checked on its size):
+  :meth:`put` one message, :meth:`put_read` the items of one device read (its raw bytes,
+  then its messages) as ONE entry, from any thread (device readers, Zenoh's callbacks),
+  taken in arrival order by one consumer (:meth:`next` + :meth:`handle`, or :meth:`drain`);
 - the :class:`hilnav.bus.Bus` (``[zenoh]``), the fleet's pose boxes and liveliness
   tokens (:meth:`declare_peers`) and the queryables ``pose``, ``map``, ``info``;
 - the :class:`hilnav.peers.PeerTable` (a peer is dropped when its token goes or its
   boxes stop for ``peer_timeout_s``; every admission and drop is kept in
   :attr:`peer_events` with the wall time it arrived);
-- the sinks (:mod:`hilnav.sinks`: the MCAP log, the live view), each message encoded once;
+- the sinks (:mod:`hilnav.sinks`: the MCAP log, the live view), each message encoded once
+  (the bus sends the log's native record);
 - the fault counters: an exception while handling one message is counted per place,
   kept for ``status`` and printed once per kind, and the runtime goes on.
 
 A device message is logged, published when :data:`hilnav.topics.PUBLISHED` says so, and
-fed to the pipeline, whose outputs are published and logged the same way. Log time is
-when the message was put on the queue (for a service output: when its input was).
+fed to the pipeline, whose outputs are published and logged the same way the moment their
+service makes them (the pipeline's ``on_output``: the pose goes out before cooperative
+localization's step). Log time is when the message was put on the queue (for a service
+output: when its input was). :meth:`open_bus` lowers the process's GIL switch interval to
+:attr:`RobotRuntime.SWITCH_INTERVAL_S`.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ from typing import Any
 
 from hilnav.bus import Bus, ZenohSettings, zenoh_problem
 from hilnav.config import RobotConfig
+from hilnav.log.encoding import stamp_of
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
 from hilnav.sinks import Sink, Sinks, default_log_path, open_run_log
@@ -46,7 +53,7 @@ class StartError(RuntimeError):
     """The runtime cannot start (Zenoh, the log directory): the message says why."""
 
 
-@dataclass
+@dataclass(slots=True)
 class Item:
     """One queued message: ``peer`` is set for another robot's (its topic "" for a
     liveliness change, ``msg`` then True/False)."""
@@ -82,6 +89,11 @@ class PeerEvent:
 class RobotRuntime:
     """One robot's services, peers, bus and sinks behind one queue (module docstring)."""
 
+    # How long a thread holding the GIL keeps it while another waits (Python's default is
+    # 5 ms): a reader or the service loop woken by a device read gets it from the mapping
+    # thread's pure-Python steps after 0.5 ms. Set for the whole process by open_bus().
+    SWITCH_INTERVAL_S = 0.0005
+
     def __init__(
         self,
         cfg: RobotConfig,
@@ -100,10 +112,17 @@ class RobotRuntime:
         self.stats = RuntimeStats()
         self.errors: list[str] = []
         self._fault_kinds: set[tuple[str, str]] = set()
-        self.pipeline = Pipeline(cfg, on_mapping=self._from_mapping, on_fault=self.fault)
+        self.pipeline = Pipeline(
+            cfg, on_mapping=self._from_mapping, on_fault=self.fault, on_output=self._from_service
+        )
         self.peers = PeerTable(cfg.services.localization.peer_timeout_s)
         self.peer_events: list[PeerEvent] = []
-        self._q: queue.Queue[Item] = queue.Queue(maxsize=queue_size)
+        # SimpleQueue: put and get in C, no Python-level condition per message; the bound
+        # (messages dropped beyond it) is checked on its size
+        self._q: queue.SimpleQueue[Item | list[Item]] = queue.SimpleQueue()
+        self._queue_size = queue_size
+        self._publishing = True  # the publish flag of the item being handled
+        self._log_topics: dict[str, str] = {}  # topic -> /<robot>/<topic>
         self.bus: Bus | None = None
         self.log: Any = None
         self.log_path: Path | None = None
@@ -113,6 +132,7 @@ class RobotRuntime:
 
     # -- opening ------------------------------------------------------------------------------
     def open_bus(self) -> Bus:
+        sys.setswitchinterval(min(sys.getswitchinterval(), self.SWITCH_INTERVAL_S))
         try:
             self.bus = Bus(self.robot, self.zenoh, fleet=self.cfg.fleet)
         except Exception as exc:  # zenoh.ZError and friends
@@ -169,10 +189,22 @@ class RobotRuntime:
     # -- producers (any thread) -------------------------------------------------------------------
     def put(self, topic: str, msg: Any, peer: str = "", recv_ns: int | None = None) -> None:
         """Queue a message (counted as dropped when the queue is full)."""
-        try:
-            self._q.put_nowait(Item(topic, msg, recv_ns or time.time_ns(), peer))
-        except queue.Full:
+        if self._q.qsize() >= self._queue_size:
             self.stats.dropped += 1
+        else:
+            self._q.put(Item(topic, msg, recv_ns or time.time_ns(), peer))
+        if self.wake is not None:
+            self.wake.set()
+
+    def put_read(self, pending: list[tuple[str, Any]]) -> None:
+        """The ``(topic, msg)`` items of one device read (its raw bytes, then its messages)
+        as one queue entry, received at one time: one hand-over to the consumer per read
+        (all counted as dropped when the queue is full)."""
+        if self._q.qsize() >= self._queue_size:
+            self.stats.dropped += len(pending)
+        else:
+            now = time.time_ns()
+            self._q.put([Item(topic, msg, now) for topic, msg in pending])
         if self.wake is not None:
             self.wake.set()
 
@@ -187,6 +219,11 @@ class RobotRuntime:
     def _from_mapping(self, topic: str, msg: Any, recv_ns: Any) -> None:
         self.emit(topic, msg, int(recv_ns or time.time_ns()), publish=not self.closing.is_set())
 
+    def _from_service(self, topic: str, msg: Any, recv_ns: Any) -> None:
+        """A service's output, the moment it is made (the pose before CP runs)."""
+        publish = self._publishing and not self.closing.is_set()
+        self.emit(topic, msg, int(recv_ns or time.time_ns()), publish)
+
     def fault(self, where: str, exc: BaseException) -> None:
         """Count a fault, keep it for ``status``, print its first occurrence per kind."""
         self.stats.faults[where] = self.stats.faults.get(where, 0) + 1
@@ -199,10 +236,11 @@ class RobotRuntime:
             print(f"{self.prog}: {text} (counted; the loop goes on)", file=sys.stderr, flush=True)
 
     # -- the consumer (one thread) ------------------------------------------------------------------
-    def next(self, timeout_s: float) -> Item | None:
-        """The next queued item, or None after ``timeout_s``."""
+    def next(self, timeout_s: float) -> Item | list[Item] | None:
+        """The next queue entry (an item, or the items of one device read, for
+        :meth:`handle`), or None after ``timeout_s``."""
         try:
-            return self._q.get(timeout=timeout_s)
+            return self._q.get(timeout=timeout_s) if timeout_s > 0 else self._q.get_nowait()
         except queue.Empty:
             return None
 
@@ -211,11 +249,11 @@ class RobotRuntime:
         n = 0
         while True:
             try:
-                item = self._q.get_nowait()
+                entry = self._q.get_nowait()
             except queue.Empty:
                 return n
-            self.handle(item, publish)
-            n += 1
+            self.handle(entry, publish)
+            n += len(entry) if type(entry) is list else 1
 
     def guard(self, where: str, fn: Any, *args: Any) -> None:
         """``fn(*args)``, an exception counted under ``where``."""
@@ -224,9 +262,14 @@ class RobotRuntime:
         except Exception as exc:
             self.fault(where, exc)
 
-    def handle(self, item: Item, publish: bool = True) -> None:
-        """One item through the services, the bus and the sinks (faults counted)."""
-        self.guard("services", self._handle, item, publish)
+    def handle(self, entry: Item | list[Item], publish: bool = True) -> None:
+        """One queue entry (an item, or one device read's items in order) through the
+        services, the bus and the sinks (faults counted per item)."""
+        if type(entry) is list:
+            for item in entry:
+                self.guard("services", self._handle, item, publish)
+        else:
+            self.guard("services", self._handle, entry, publish)
 
     def expire_peers(self, now: float | None = None) -> None:
         """Drop the peers silent for longer than ``peer_timeout_s``."""
@@ -248,8 +291,11 @@ class RobotRuntime:
         if topic == "info":
             self.pipeline.latest["info"] = msg
         self.emit(topic, msg, item.recv_ns, publish)
-        for t, m in self.pipeline.feed(topic, msg, item.recv_ns):
-            self.emit(t, m, item.recv_ns, publish)
+        self._publishing = publish
+        try:
+            self.pipeline.feed(topic, msg, item.recv_ns)  # outputs: self._from_service
+        finally:
+            self._publishing = True
 
     def _handle_peer(self, item: Item) -> None:
         now = time.monotonic()
@@ -272,14 +318,27 @@ class RobotRuntime:
         del self.peer_events[:-10000]
 
     def emit(self, topic: str, msg: Any, log_ns: int, publish: bool = True) -> None:
-        """Publish (if the topics table says so) and log one of this robot's messages."""
+        """Publish (if the topics table says so) and log one of this robot's messages,
+        encoded once: the bus sends the log's native record (its own encoding when there
+        is no sink). Log and publish times as in :meth:`log_msg`."""
+        records = None
+        if self.sinks:
+            mcap_topic = self._log_topics.get(topic)
+            if mcap_topic is None:
+                mcap_topic = self._log_topics[topic] = log_topic(self.robot, topic)
+            records = self.sinks.encode(mcap_topic, msg)
         if publish and topic in PUBLISHED and self.bus is not None:
             try:
-                self.bus.publish(topic, msg)
+                if records:
+                    native = records[0]
+                    self.bus.put_encoded(self.robot, topic, native.data, native.schema_name)
+                else:
+                    self.bus.publish(topic, msg)
                 self.stats.published += 1
             except Exception as exc:
                 self.fault("bus", exc)
-        self.log_msg(log_topic(self.robot, topic), msg, log_ns)
+        if records and self.sinks.write_records(records, log_ns, stamp_of(msg)):
+            self.stats.logged += 1
 
     def log_msg(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
         """To every sink (log, live view). Log time = when the message was queued (for a

@@ -1,7 +1,8 @@
 """Where the daemon's messages go besides the bus: its MCAP log and the live view.
 
 :class:`Sinks` encodes each message once (:class:`hilnav.log.encoding.Encoder`: the
-native record and its Foxglove views) and hands the records to every sink by place name:
+native record and its Foxglove views; the daemon also sends the native record's bytes on
+the bus) and hands the records to every sink by place name:
 ``log`` (:class:`hilnav.log.writer.LogWriter`) and ``live``
 (:class:`hilnav.live.LiveBridge`, ``hilnav run --foxglove``). A sink that refuses a
 message is reported to ``on_fault`` under its place and the others still get it.
@@ -17,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from hilnav.config import RobotConfig
-from hilnav.log.encoding import Encoder, Sink, stamp_of
+from hilnav.log.encoding import Encoder, Record, Sink, stamp_of
 from hilnav.log.writer import LogWriter
 
 
@@ -39,15 +40,24 @@ class Sinks:
 
     def write(self, topic: str, msg: Any, log_ns: int) -> bool:
         """Log time ``log_ns``, publish time the message's stamp; True if every sink took it."""
+        records = self.encode(topic, msg)
+        return records is not None and self.write_records(records, log_ns, stamp_of(msg))
+
+    def encode(self, topic: str, msg: Any) -> list[Record] | None:
+        """The message's records (the native one first), or None if it cannot be encoded
+        (reported to ``on_fault`` as "log")."""
         try:
-            records = self._encoder.encode(topic, msg)
+            return self._encoder.encode(topic, msg)
         except Exception as exc:
             self._on_fault("log", exc)
-            return False
+            return None
+
+    def write_records(self, records: list[Record], log_ns: int, publish_ns: int | None) -> bool:
+        """Records of one message to every sink; True if every sink took them."""
         ok = True
         for place, sink in self.sinks.items():
             try:
-                sink.write_records(records, log_ns, stamp_of(msg))
+                sink.write_records(records, log_ns, publish_ns)
             except Exception as exc:
                 self._on_fault(place, exc)
                 ok = False

@@ -9,10 +9,23 @@ outside: payloads over ``max_bytes`` or nested deeper than Python can parse are 
 integers must fit in 64 bits (MCAP and Zenoh stamps are uint64), ``*_ns`` stamps must lie
 in ``[0, 2**63)``, and a class that sets ``FLOATS = "finite"`` (commands) or
 ``FLOATS = "no_nan"`` (pose boxes, whose heading may be unbounded) gets every float of
-it, nested ones included, checked. The walk over the type hints is msgs.typed's (shared
-with the config loader); these checks are the codec's policy on it. ``json_schema``
-derives a JSON Schema from the type hints, for the MCAP schema records. ``bytes`` fields
-travel as base64 strings (as Foxglove expects).
+it, nested ones included, checked. ``json_schema`` derives a JSON Schema from the type
+hints, for the MCAP schema records. ``bytes`` fields travel as base64 strings (as
+Foxglove expects); a non-finite float as the string "nan", "inf" or "-inf".
+
+Both directions run on msgspec (its C encoder and typed decoder over the dataclasses), one
+plan per class (:mod:`msgs.fast`):
+
+- ``encode``: msgspec writes NaN and infinity as ``null``, so a payload with a ``null``
+  that the message's ``None`` fields do not account for is made again by the reference
+  path (:func:`to_dict`, then msgspec), which writes them as strings;
+- ``decode``: msgspec checks the JSON and every type (bool is no int, floats finite,
+  base64 valid, literals, tuple lengths, missing fields), then the plan's checks of the
+  integers (64 bits, stamps not negative). Any payload the fast path refuses, or that
+  holds a non-finite float (a string in JSON), goes through the reference walk over the
+  type hints (msgs.typed, shared with the config loader), which accepts exactly what it
+  always did and names the offending field. The fast path accepts a subset of what the
+  walk accepts and builds the same message.
 """
 
 from __future__ import annotations
@@ -26,6 +39,7 @@ import typing
 from functools import cache
 from typing import Any, TypeVar
 
+from msgs.fast import ENCODER, plan
 from msgs.typed import TypedReader, hints, join
 
 T = TypeVar("T")
@@ -40,8 +54,16 @@ _I64 = 2**63
 
 
 def _plain(value: Any) -> Any:
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    t = type(value)  # the common exact types first, then the general rules
+    if t is float:
+        return value if value - value == 0.0 else _non_finite(value)
+    if t is int or t is str or t is bool or value is None:
+        return value
+    if t is tuple or t is list:
+        return [_plain(v) for v in value]
+    names = _field_names(t)
+    if names is not None:
+        return {name: _plain(getattr(value, name)) for name in names}
     if isinstance(value, bytes | bytearray | memoryview):
         return base64.b64encode(bytes(value)).decode("ascii")
     if isinstance(value, tuple | list):
@@ -49,11 +71,23 @@ def _plain(value: Any) -> Any:
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, float) and not math.isfinite(value):
-        # JSON has no inf/nan: encode as strings understood by decode().
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+        return _non_finite(value)
     if hasattr(value, "item") and callable(value.item):  # numpy scalar
         return _plain(value.item())
     return value
+
+
+def _non_finite(value: float) -> str:
+    # JSON has no inf/nan: encoded as strings understood by decode().
+    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+
+
+@cache
+def _field_names(cls: type) -> tuple[str, ...] | None:
+    """The field names of a dataclass type (None for any other type)."""
+    if not dataclasses.is_dataclass(cls):
+        return None
+    return tuple(f.name for f in dataclasses.fields(cls))
 
 
 def to_dict(msg: Any) -> dict[str, Any]:
@@ -63,7 +97,18 @@ def to_dict(msg: Any) -> dict[str, Any]:
 
 def encode(msg: Any) -> bytes:
     """Compact JSON bytes of a message dataclass."""
-    return json.dumps(_plain(msg), separators=(",", ":"), allow_nan=False).encode("utf-8")
+    try:
+        data = ENCODER.encode(msg)
+    except (TypeError, ValueError, OverflowError):  # an odd value: the reference path says
+        return _encode_reference(msg)
+    if b"null" in data and not plan(type(msg)).nulls_are_nones(msg, data):
+        return _encode_reference(msg)  # NaN or infinity somewhere: strings, not null
+    return data
+
+
+def _encode_reference(msg: Any) -> bytes:
+    """The message through :func:`to_dict` (non-finite floats as strings), then JSON."""
+    return ENCODER.encode(_plain(msg))
 
 
 class _Decoder(TypedReader):
@@ -169,6 +214,9 @@ def decode(
     (``max_bytes``) or too deeply nested."""
     if len(payload) > max_bytes:
         raise DecodeError(f"{cls.__name__}: payload of {len(payload)} bytes (limit {max_bytes})")
+    msg = plan(cls).decode(payload)
+    if msg is not None:
+        return msg
     try:
         data = json.loads(bytes(payload) if not isinstance(payload, str) else payload)
     except (ValueError, UnicodeDecodeError) as exc:

@@ -41,3 +41,49 @@ def test_the_runtime_feeds_logs_and_tracks_its_peers(tmp_path):
     assert ("/r2/pose_box", 6_000) in got
     meta = read_metadata(tmp_path / "r1.mcap")
     assert meta["hilnav"]["robot"] == "r1" and meta["scenario"] == {"scenario": "test"}
+
+
+class _Order:
+    """A sink that keeps each record's topic and which outputs the pipeline had made."""
+
+    def __init__(self, rt_of):
+        self.rt_of, self.seen = rt_of, []
+
+    def write_records(self, records, log_time_ns, publish_time_ns=None):
+        self.seen.append((records[0].topic, log_time_ns, set(self.rt_of().pipeline.latest)))
+
+    def close(self):
+        pass
+
+
+def test_a_device_read_is_one_entry_and_outputs_go_out_as_they_are_made():
+    cfg = parse_config(
+        {
+            "name": "r1",
+            "services": {n: {"enabled": False} for n in ("localization", "mapping")},
+            "log": {"raw": False},
+        },
+        "<test>",
+    )
+    rts: list[RobotRuntime] = []
+    order = _Order(lambda: rts[0])
+    rt = RobotRuntime(cfg, sinks={"order": order}, queue_size=2)
+    rts.append(rt)
+    odo = [
+        RobotOdometry(1_000_000_000 + k * 100_000_000, Pose2D(1.5 + 0.01 * k, 1.5, 0.0),
+                      0.1, 0.0, 0.0, 0.0, 12.0, True, True)
+        for k in range(4)
+    ]  # fmt: skip
+    rt.put_read([("odometry", odo[0]), ("odometry", odo[1])])  # one read: one entry
+    rt.put("odometry", odo[2])
+    rt.put_read([("odometry", odo[3])])  # the queue holds 2 entries: dropped
+    assert rt.stats.dropped == 1
+    assert rt.drain() == 3 and rt.stats.processed == 3
+    topics = [t for t, _, _ in order.seen]
+    assert topics == ["/r1/odometry", "/r1/odometry", "/r1/heading", "/r1/pose",
+                      "/r1/odometry", "/r1/heading", "/r1/pose"]  # fmt: skip
+    # the read's items share one receive time (log time), outputs take their input's
+    assert order.seen[0][1] == order.seen[1][1] == order.seen[3][1]
+    # the heading went out before the pose service ran on the same input
+    assert "pose" not in order.seen[2][2] and "pose" in order.seen[3][2]
+    rt.close()

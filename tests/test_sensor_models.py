@@ -74,3 +74,20 @@ def test_gps_model_outages_and_spread():
     got = np.array([e for e in errs if e is not None])
     assert 0 < len(got) < 2000
     assert 0.5 < got[:, 0].std() < 3.0
+
+
+def test_median_filter_equals_numpy_median():
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 4, 5):
+        f = MedianFilter(4, n)
+        hist: list[list[float]] = [[] for _ in range(4)]
+        for _ in range(30):
+            x = rng.uniform(0.5, 6.0, 4)
+            x[rng.random(4) < 0.2] = np.nan
+            x[rng.random(4) < 0.05] = np.inf
+            out = f(x)
+            for i in range(4):
+                hist[i] = (hist[i] + [float(x[i])])[-n:]
+                vals = [v for v in hist[i] if np.isfinite(v)]
+                expect = float(np.median(vals)) if vals else np.nan
+                assert out[i] == expect or (np.isnan(out[i]) and np.isnan(expect))

@@ -151,20 +151,22 @@ class IrConverter:
         except (KeyError, TypeError):
             return self._convert(s, stamp_ns)
         if self._median is not None:
-            return self._filtered(s, stamp_ns, np.asarray(ranges), volts, status)
+            return self._filtered(s, stamp_ns, ranges, volts, status)
         raw = tuple(map(int, counts))
         return IrScan(stamp_ns, s.board_id, s.seq, ranges, status, volts, raw)  # type: ignore[arg-type]
 
-    def _filtered(self, s: RawSample, stamp_ns: int, ranges: np.ndarray, volts, status) -> IrScan:
-        codes = np.array([STATUS_NAMES.index(x) for x in status], dtype=np.int8)
-        ranges = self._median(np.where(codes == 0, ranges, np.nan))  # type: ignore[misc]
-        codes = np.where(np.isfinite(ranges), 0, codes).astype(np.int8)
+    def _filtered(self, s: RawSample, stamp_ns: int, ranges, volts, status) -> IrScan:
+        """The median of the channel's last ranges; a channel whose reading is not "ok"
+        counts as missing, and reads "ok" again when its median is finite."""
+        names = [STATUS_NAMES[STATUS_NAMES.index(x)] for x in status]
+        ok = [float(r) if n == "ok" else math.nan for r, n in zip(ranges, names, strict=True)]
+        med = self._median(ok)  # type: ignore[misc]
         return IrScan(
             stamp_ns=stamp_ns,
             board_id=s.board_id,
             seq=s.seq,
-            ranges_m=tuple(float(r) for r in ranges),
-            status=tuple(STATUS_NAMES[int(k)] for k in codes),  # type: ignore[misc]
+            ranges_m=tuple(med),
+            status=tuple("ok" if math.isfinite(r) else n for r, n in zip(med, names, strict=True)),  # type: ignore[misc]
             voltages_v=tuple(volts),
             raw_counts=tuple(int(c) for c in s.counts),
         )

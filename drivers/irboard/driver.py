@@ -1,7 +1,8 @@
 """IR ADC board drivers: serial (any byte link) and CAN (any python-can interface).
 
 The serial driver sends SET_RATE on connect. The CAN driver opens a python-can bus —
-``slcan`` (a USB-CAN adapter on a serial port, channel = the port path), ``virtual``
+``slcan`` (a USB-CAN adapter on a serial port, channel = the port path; python-can's
+slcan read in blocks: drivers.slcan), ``virtual``
 (in-process), ``socketcan`` (Linux, channel = ``can0``) or any other interface — filters
 its board's sample id, sends SET_RATE, and reopens the bus when it fails.
 """
@@ -19,6 +20,7 @@ from drivers.irboard.codec import IrCanCodec, IrSerialCodec
 from drivers.irboard.convert import IrBoardConfig
 from drivers.irboard.serialframe import set_rate_command
 from drivers.reconnect import Reconnect, local_path
+from drivers.slcan import BlockSlcanBus
 from drivers.stream import StreamDriver
 from msgs import IrScan
 
@@ -92,7 +94,11 @@ class IrCanDriver(LinkDiagnostics):
         if self.channel:
             kw["channel"] = self.channel
         try:
-            self.bus = can.Bus(can_filters=can_filters, **kw)
+            if kw.get("interface") == "slcan" and "channel" in kw:
+                del kw["interface"]
+                self.bus = BlockSlcanBus(can_filters=can_filters, **kw)
+            else:
+                self.bus = can.Bus(can_filters=can_filters, **kw)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
             raise DeviceError(
                 f"CAN {self.interface}:{self.channel}: cannot open ({exc}); check the "

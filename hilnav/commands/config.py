@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hilnav.config import ConfigError, default_toml_path, load_config, summary
 from hilnav.errors import CliError
 
 
@@ -30,6 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def check(args: argparse.Namespace) -> int:
+    from hilnav.config import ConfigError, load_config, summary
+
     try:
         cfg = load_config(args.file)
     except ConfigError as exc:
@@ -40,6 +41,8 @@ def check(args: argparse.Namespace) -> int:
 
 
 def example(args: argparse.Namespace) -> int:
+    from hilnav.config import default_toml_path
+
     sys.stdout.write(default_toml_path().read_text(encoding="utf-8"))
     return 0
 

@@ -8,11 +8,12 @@ import json
 import signal
 import sys
 import threading
+from typing import TYPE_CHECKING
 
-from hilnav.config import ConfigError, RobotConfig, load_config, parse_config
-from hilnav.devices import FakeKnobs
 from hilnav.errors import CliError
-from hilnav.fakeset import build_fakes, override
+
+if TYPE_CHECKING:
+    from hilnav.config import RobotConfig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -86,6 +87,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _config(args: argparse.Namespace) -> RobotConfig:
     """The robot config: the file, the JSON line on stdin, or the defaults."""
+    from hilnav.config import ConfigError, load_config, parse_config
+
     try:
         if args.config == "-":
             line = sys.stdin.readline()
@@ -113,6 +116,9 @@ def _watch_stdin(done: threading.Event) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hilnav.devices import FakeKnobs
+    from hilnav.fakeset import build_fakes, override
+
     replay = {}
     for item in args.replay:
         dev, sep, path = item.partition("=")

@@ -9,13 +9,13 @@ import os
 import signal
 import sys
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from drivers.base import DeviceError
 from hilnav.commands.probe_sensors import no_messages, probe_config, register_sensors
-from hilnav.devices import DEVICES, guess_device
 from hilnav.errors import CliError
-from msgs import RobotInfo, RobotOdometry, to_dict
+
+if TYPE_CHECKING:
+    from msgs import RobotOdometry
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -76,6 +76,8 @@ def _by_id_links(folder: str = "/dev/serial/by-id") -> dict[str, list[str]]:
 
 def port_row(p: Any, by_id: dict[str, list[str]]) -> dict[str, Any]:
     """What ``--list`` prints for one ``serial.tools.list_ports`` entry."""
+    from hilnav.devices import guess_device
+
     usb = f"{p.vid:04x}:{p.pid:04x}" if p.vid is not None and p.pid is not None else None
     return {
         "port": p.device,
@@ -119,6 +121,10 @@ def sip_json(m: RobotOdometry) -> dict:
 
 
 def probe_arcos(args: argparse.Namespace) -> int:
+    from drivers.base import DeviceError
+    from hilnav.devices import DEVICES
+    from msgs import RobotInfo, RobotOdometry, to_dict
+
     drive = _parse_drive(args.drive)
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))

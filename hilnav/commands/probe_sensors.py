@@ -15,15 +15,13 @@ import json
 import math
 import signal
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from drivers.base import DeviceError
-from drivers.nmea import Datum
-from drivers.nmea.gpsd_json import gpsd_objects
-from hilnav.config import ConfigError, Geometry, RobotConfig, parse_config
-from hilnav.devices import DEVICES
 from hilnav.errors import CliError
-from msgs import GpsFix, GpsSky, GyroSample, IrScan, to_dict
+
+if TYPE_CHECKING:
+    from hilnav.config import RobotConfig
+    from msgs import GpsFix
 
 
 def register_sensors(dev: argparse._SubParsersAction) -> None:
@@ -93,6 +91,8 @@ def _clean(v: Any) -> Any:
 
 
 def gps_json(f: GpsFix) -> dict[str, Any]:
+    from msgs import to_dict
+
     d = to_dict(f)
     out = {
         "time": f.time_utc or None,
@@ -108,6 +108,8 @@ def gps_json(f: GpsFix) -> dict[str, Any]:
 
 
 def _json(m: Any) -> list[dict[str, Any]]:
+    from msgs import GpsFix, GpsSky, GyroSample, IrScan, to_dict
+
     if isinstance(m, GpsFix):
         return [gps_json(m)]
     if isinstance(m, (GyroSample, IrScan, GpsSky)):
@@ -116,8 +118,12 @@ def _json(m: Any) -> list[dict[str, Any]]:
 
 
 def _loop(driver: Any, args: argparse.Namespace) -> int:
+    from drivers.base import DeviceError
+
     gpsd = getattr(args, "gpsd_json", False)
-    as_json = gpsd_objects if gpsd else _json
+    as_json = _json
+    if gpsd:
+        from drivers.nmea.gpsd_json import gpsd_objects as as_json
     seps = (",", ":") if gpsd else None  # gpsd's compact form
     stop: list[int] = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
@@ -158,6 +164,9 @@ def no_messages(port: str, driver: Any) -> str:
 
 
 def probe_ir(args: argparse.Namespace) -> int:
+    from hilnav.config import Geometry
+    from hilnav.devices import DEVICES
+
     if not 1 <= args.channels <= 8:
         raise CliError(f"--channels {args.channels}: an IR board has 1 to 8 channels")
     mounts = [list(m) for m in Geometry().ir_mounts[: args.channels]]
@@ -181,12 +190,17 @@ def probe_ir(args: argparse.Namespace) -> int:
 
 
 def probe_gyro(args: argparse.Namespace) -> int:
+    from hilnav.devices import DEVICES
+
     cfg = probe_config("gyro", {"port": args.port, "baud": args.baud})
     extra = {"rate_hz": args.rate, "reset_on_open": not args.no_reset}
     return _loop(DEVICES["gyro"].driver(cfg, None, **extra), args)
 
 
 def probe_gps(args: argparse.Namespace) -> int:
+    from drivers.nmea import Datum
+    from hilnav.devices import DEVICES
+
     datum = None
     if args.datum:
         try:
@@ -209,6 +223,8 @@ def can_interfaces() -> frozenset[str]:
 def probe_config(device: str, section: dict[str, Any], **tables: Any) -> RobotConfig:
     """A robot config holding one device's settings from the command line (checked as a
     config file is: a bad value names its key)."""
+    from hilnav.config import ConfigError, parse_config
+
     try:
         return parse_config({"devices": {device: section}, **tables}, "the command line")
     except ConfigError as exc:

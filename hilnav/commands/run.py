@@ -8,7 +8,6 @@ import signal
 import sys
 from typing import Any
 
-from hilnav.config import ConfigError, load_config, summary
 from hilnav.errors import CliError
 
 
@@ -45,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hilnav.config import ConfigError, load_config, summary
     from hilnav.daemon import Daemon, DaemonError
 
     try:

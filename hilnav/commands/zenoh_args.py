@@ -4,10 +4,12 @@ themselves (``hilnav view``, ``hilnav play``), and the Zenoh session they descri
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
-from hilnav.bus import Bus, ZenohSettings, zenoh_problem
-from hilnav.config.loader import endpoint_problem
 from hilnav.errors import CliError
+
+if TYPE_CHECKING:
+    from hilnav.bus import Bus, ZenohSettings
 
 DEFAULT_CONNECT = "tcp/127.0.0.1:7447"  # where `hilnav run` listens by default
 
@@ -32,6 +34,9 @@ def add_zenoh_args(p: argparse.ArgumentParser) -> None:
 
 def zenoh_settings(args: argparse.Namespace) -> ZenohSettings:
     """Peer mode on the given endpoints, multicast scouting off; CliError on a bad one."""
+    from hilnav.bus import ZenohSettings
+    from hilnav.config.loader import endpoint_problem
+
     connect = list(args.connect) or ([] if args.listen else [DEFAULT_CONNECT])
     for opt, eps in (("--connect", connect), ("--listen", args.listen)):
         for ep in eps:
@@ -43,6 +48,8 @@ def zenoh_settings(args: argparse.Namespace) -> ZenohSettings:
 
 def open_bus(name: str, settings: ZenohSettings) -> Bus:
     """A :class:`hilnav.bus.Bus` without a fleet filter; CliError if Zenoh refuses."""
+    from hilnav.bus import Bus, zenoh_problem
+
     try:
         return Bus(name, settings)
     except Exception as exc:

@@ -4,9 +4,10 @@ runtime: pipeline, peers, bus, log) fed by a scenario's devices instead of drive
 A host process (:mod:`hilnav.fleet.host`) steps its robots together. Per step ``s``:
 
 1. :meth:`SimRobot.begin_step`: the peers' boxes and liveliness changes that arrived are
-   handled; the robot's device messages of the step go through its queue (the CP service
-   steps and publishes the step's ``pose_box``); the truth is logged; the reference
-   localizers (if any) are fed the same messages;
+   handled; the robot's device messages of the step go through its queue as one entry,
+   like one device read of the daemon (the CP service steps and publishes the step's
+   ``pose_box``); the truth is logged; the reference localizers (if any) are fed the same
+   messages;
 2. the host waits (bounded) until every live peer's box of this step is in
    (:meth:`SimRobot.peers_ready`);
 3. :meth:`SimRobot.end_step`: the range-bearing scan of the live peers goes through the
@@ -28,7 +29,7 @@ from hilnav.bus import ZenohSettings
 from hilnav.config import RobotConfig
 from hilnav.fleet.scenarios import FleetScenario, Reference, RobotDevices
 from hilnav.fleet.score import Track
-from hilnav.runtime import RobotRuntime
+from hilnav.runtime import Item, RobotRuntime
 from hilnav.topics import log_topic
 from msgs import GroundTruth, Pose2D, wrap_angle
 
@@ -95,7 +96,7 @@ class SimRobot:
         """Handle what is queued (peer boxes, liveliness); drop silent peers."""
         rt, n = self.rt, 0
         while (item := rt.next(0.0)) is not None:
-            if item.peer and item.topic == "pose_box":
+            if type(item) is Item and item.peer and item.topic == "pose_box":
                 self.ages_ms.append((item.recv_ns - self.due_ns(item.msg.stamp_ns)) * 1e-6)
             rt.handle(item)
             n += 1
@@ -106,8 +107,8 @@ class SimRobot:
         assert self.devices is not None
         self.pump()
         msgs = self.devices.messages(s)
-        for topic, m in msgs:
-            self.rt.put(topic, m)
+        if msgs:
+            self.rt.put_read(msgs)
         self.pump()
         self._stamp_ns = stamp = int(msgs[0][1].stamp_ns) if msgs else self._stamp_ns
         t = self.devices.truth(s)

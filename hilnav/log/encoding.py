@@ -18,17 +18,29 @@ from __future__ import annotations
 import json
 import threading
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
+
+import msgspec
 
 import msgs
 from hilnav.log import foxglove
 from hilnav.log.foxglove_schemas import SCHEMAS, official_schema
 
+_ENCODE = msgspec.json.Encoder().encode
+
 
 def dumps(obj: Any) -> bytes:
-    """Compact JSON bytes; ValueError on NaN or infinity (JSON cannot hold them)."""
-    return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    """Compact JSON bytes; ValueError on NaN or infinity (JSON cannot hold them).
+
+    msgspec writes NaN and infinity as null: a payload with a null is made again by
+    ``json``, which refuses them (and writes a real None as null too)."""
+    try:
+        data = _ENCODE(obj)
+    except (TypeError, OverflowError):
+        data = b"null"
+    if b"null" in data:
+        return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode("utf-8")
+    return data
 
 
 def stamp_of(msg: Any) -> int | None:
@@ -38,11 +50,11 @@ def stamp_of(msg: Any) -> int | None:
     return stamp if isinstance(stamp, int) and 0 < stamp < 2**63 else None
 
 
-@dataclass(frozen=True, slots=True)
-class Record:
+class Record(NamedTuple):
     """One encoded payload on one channel (JSON message encoding).
 
-    ``cls`` is the msgs class of a native record, None for a Foxglove view."""
+    ``cls`` is the msgs class of a native record, None for a Foxglove view. (A named
+    tuple: made for every message, it costs a third of a frozen dataclass.)"""
 
     topic: str
     schema_name: str
@@ -58,6 +70,9 @@ class Record:
     @property
     def is_view(self) -> bool:
         return self.cls is None
+
+
+_SCHEMA_NAMES: dict[type, str] = {}
 
 
 class Encoder:
@@ -76,8 +91,11 @@ class Encoder:
 
     def encode(self, topic: str, msg: Any) -> list[Record]:
         cls = type(msg)
-        out = [Record(topic, msgs.schema_name(cls), msgs.encode(msg), cls)]
-        if self.views:
+        name = _SCHEMA_NAMES.get(cls)
+        if name is None:
+            name = _SCHEMA_NAMES[cls] = msgs.schema_name(cls)
+        out = [Record(topic, name, msgs.encode(msg), cls)]
+        if self.views and foxglove.may_have_views(cls):
             with self._lock:
                 out.extend(self._views(topic, msg))
         return out

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Any
 
 from hilnav.topics import split_log_topic
@@ -265,6 +266,18 @@ def _pose_views(robot: str, topic: str, msg: PoseEstimate, state: ViewState | No
         tf = frame_transform(msg.stamp_ns, WORLD_FRAME, child, map_odom)
         out.append((TF_TOPIC, "foxglove.FrameTransform", tf))
     return out
+
+
+_VIEWED = (PoseEstimate, HeadingEstimate, GroundTruth, RobotOdometry, GpsFix, PoseBox)
+
+
+@cache
+def may_have_views(cls: type) -> bool:
+    """False when :func:`views` never gives a view of a ``cls`` message (gyro samples, raw
+    bytes, IR scans ...), so the log's encoder need not ask for every one."""
+    if issubclass(cls, _VIEWED):
+        return True
+    return (hasattr(cls, "xs") and hasattr(cls, "ys")) or hasattr(cls, "landmarks")
 
 
 def views(topic: str, msg: Any, state: ViewState | None = None) -> list[View]:

@@ -5,7 +5,9 @@ times) in log-time order, decoding each record by its channel's schema name
 (``hilnav.<Class>``, or ``foxglove.Grid`` for the map) with ``msgs.decode``. Foxglove views,
 unknown schemas and malformed payloads are counted in :class:`ReadStats` and skipped.
 
-A file without a valid summary (a killed writer) is read record by record
+A closed log is read through its summary (:func:`hilnav.log.indexed.iter_indexed`: the
+chunks parsed by hand, merged in the mcap library's log-time order); a file without a
+valid summary (a killed writer) is read record by record
 (:func:`scan_records`): every complete record is used, the torn tail is ignored, a chunk
 that does not decompress or fails its CRC is counted and skipped.
 """
@@ -23,7 +25,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -40,9 +42,11 @@ from mcap.records import (
     Schema,
 )
 from mcap.stream_reader import breakup_chunk
+from mcap.summary import Summary
 
 import msgs
 from hilnav.log.foxglove_schemas import SCHEMAS
+from hilnav.log.indexed import iter_indexed
 
 MAGIC = b"\x89MCAP0\r\n"
 _HEAD = struct.Struct("<BQ")
@@ -185,8 +189,9 @@ def scan_records(path: str | Path, result: ScanResult | None = None) -> Iterator
 # Raw messages with their schema and channel, from a whole or a truncated file.
 
 
-@dataclass(frozen=True, slots=True)
-class RawRecord:
+class RawRecord(NamedTuple):
+    """One message record with its channel's topic and encoding and its schema."""
+
     topic: str
     schema_name: str
     schema_encoding: str
@@ -198,31 +203,38 @@ class RawRecord:
     data: bytes
 
 
-def _raw_record(schema: Schema | None, channel: Channel, message: Message) -> RawRecord:
+def _raw_record(
+    schema: Schema | None, channel: Channel, log_ns: int, pub_ns: int, seq: int, data: bytes
+) -> RawRecord:
     return RawRecord(
         channel.topic,
         schema.name if schema else "",
         schema.encoding if schema else "",
         schema.data if schema else b"",
         channel.message_encoding,
-        message.log_time,
-        message.publish_time,
-        message.sequence,
-        message.data,
+        log_ns,
+        pub_ns,
+        seq,
+        data,
     )
 
 
-def _has_summary(path: str | Path) -> bool:
+def _summary(path: str | Path) -> Summary | None:
+    """The file's summary, if it ends with one that has statistics (a closed log)."""
     try:
         with open(path, "rb") as f:
             f.seek(-8, os.SEEK_END)
             if f.read(8) != MAGIC:
-                return False
+                return None
             f.seek(0)  # the reader checks the leading magic where the stream is
             summary = make_reader(f).get_summary()
-            return summary is not None and summary.statistics is not None
+            return summary if summary is not None and summary.statistics is not None else None
     except (OSError, McapError, struct.error, ValueError):
-        return False
+        return None
+
+
+def _has_summary(path: str | Path) -> bool:
+    return _summary(path) is not None
 
 
 def iter_raw(
@@ -231,13 +243,26 @@ def iter_raw(
     """Every message record with its channel and schema, in log-time order when the file
     has a summary, else in file order (a truncated file)."""
     wanted = set(topics) if topics is not None else None
-    if _has_summary(path):
+    summary = _summary(path)
+    if summary is not None and summary.chunk_indexes:
+        with open(path, "rb") as f:
+            for item in iter_indexed(f, summary, wanted):
+                yield _raw_record(*item)
+        return
+    if summary is not None:
         with open(path, "rb") as f:
             reader = make_reader(f)
             for schema, channel, message in reader.iter_messages(
                 topics=list(wanted) if wanted is not None else None, log_time_order=True
             ):
-                yield _raw_record(schema, channel, message)
+                yield _raw_record(
+                    schema,
+                    channel,
+                    message.log_time,
+                    message.publish_time,
+                    message.sequence,
+                    message.data,
+                )
         return
     res = ScanResult()
     schemas: dict[int, Schema] = {}
@@ -256,11 +281,26 @@ def iter_raw(
             if wanted is not None and ch.topic not in wanted:
                 continue
             sc = schemas.get(ch.schema_id)
-            yield _raw_record(sc, ch, rec)
+            yield _raw_record(sc, ch, rec.log_time, rec.publish_time, rec.sequence, rec.data)
     if stats is not None:
         stats.truncated = not res.complete
         stats.bad_chunks += res.bad_chunks
         stats.errors.extend(res.errors)
+
+
+def topic_counts(path: str | Path) -> Counter[str]:
+    """Messages per topic: from the summary's statistics, else by reading every record."""
+    summary = _summary(path)
+    counts: Counter[str] = Counter()
+    if summary is not None and summary.statistics is not None:
+        for cid, n in summary.statistics.channel_message_counts.items():
+            channel = summary.channels.get(cid)
+            if channel is not None and n:
+                counts[channel.topic] += n
+        return counts
+    for r in iter_raw(path):
+        counts[r.topic] += 1
+    return counts
 
 
 def decode_record(

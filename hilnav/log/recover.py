@@ -18,7 +18,6 @@ from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
 
 from hilnav.log.reader import ScanResult, scan_records
-from hilnav.log.writer import COMPRESSIONS
 
 
 @dataclass
@@ -67,6 +66,14 @@ class RecoverReport:
         }
 
 
+# The mcap library's writer (it also copies attachments, which hilnav's own never writes).
+_COMPRESSIONS = {
+    "zstd": CompressionType.ZSTD,
+    "lz4": CompressionType.LZ4,
+    "none": CompressionType.NONE,
+}
+
+
 def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> RecoverReport:
     """Copy every complete record of ``src`` into a valid MCAP ``dst``."""
     src, dst = Path(src), Path(dst)
@@ -79,7 +86,7 @@ def recover(src: str | Path, dst: str | Path, compression: str = "zstd") -> Reco
     channel_topic: dict[int, str] = {}
     pending_channels: dict[int, Channel] = {}
     with open(dst, "wb") as out:
-        w = Writer(out, compression=COMPRESSIONS.get(compression, CompressionType.ZSTD))
+        w = Writer(out, compression=_COMPRESSIONS.get(compression, CompressionType.ZSTD))
         started = False
         for rec in scan_records(src, scan):
             if isinstance(rec, Header):

@@ -9,8 +9,11 @@ channel, so the Foxglove app draws the log with no plugin. The live bridge
 (:mod:`hilnav.live`) serves the same records; :meth:`LogWriter.write_records` takes
 records encoded once for both.
 
-Crash safety: the mcap library keeps the open chunk in memory until it reaches
-``chunk_size``. Here the chunk is finished and written out (``Writer.flush``) whenever
+The file itself is written by :class:`hilnav.log.mcap_file.McapFile`: the bytes the mcap
+library's writer would write, with the messages packed by hand (four times faster).
+
+Crash safety: the open chunk is kept in memory until it reaches ``chunk_size``. Here the
+chunk is finished and written out (``McapFile.flush``) whenever
 ``flush_every_s`` of log time has passed since the chunk's first message and, unless
 ``wall_clock=False``, also by a timer thread every ``flush_every_s`` of wall time, which
 also fsyncs what was written (``fsync=True``) so that a power cut loses no more. A killed
@@ -31,15 +34,9 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from mcap.writer import CompressionType, Writer
-
 from hilnav.log.encoding import Encoder, Record, dumps
+from hilnav.log.mcap_file import COMPRESSIONS, McapFile
 
-COMPRESSIONS = {
-    "zstd": CompressionType.ZSTD,
-    "lz4": CompressionType.LZ4,
-    "none": CompressionType.NONE,
-}
 METADATA_NAME = "hilnav"
 PROFILE = ""
 LIBRARY = "hilnav"
@@ -87,13 +84,11 @@ class LogWriter:
         self._encoder = Encoder(views=foxglove_views)
         self._lock = threading.Lock()
         self._stream = open(self.path, "wb")  # noqa: SIM115 - closed in close()
-        self._writer = Writer(
-            self._stream, chunk_size=chunk_size, compression=COMPRESSIONS[compression]
-        )
+        self._writer = McapFile(self._stream, chunk_size=chunk_size, compression=compression)
         self._writer.start(profile=PROFILE, library=LIBRARY)
         self._schemas: dict[tuple[str, str, bytes], int] = {}
-        self._channels: dict[tuple[str, str, str], int] = {}
-        self._seq: dict[int, int] = {}
+        # (topic, schema name, message encoding) -> [channel id, next sequence number]
+        self._channels: dict[tuple[str, str, str], list[int]] = {}
         self._pending = 0  # messages in the open chunk
         self._chunk_first_ns: int | None = None
         self._last_flush_wall = time.monotonic()
@@ -146,10 +141,11 @@ class LogWriter:
         schema: dict[str, Any] | bytes | None,
         schema_encoding: str = "jsonschema",
         message_encoding: str = "json",
-    ) -> int:
+    ) -> list[int]:
+        """[channel id, next sequence number] of the channel, registered on first use."""
         key = (topic, schema_name, message_encoding)
-        cid = self._channels.get(key)
-        if cid is None:
+        channel = self._channels.get(key)
+        if channel is None:
             if isinstance(schema, dict):
                 data, enc = dumps(schema), schema_encoding
             elif isinstance(schema, bytes | bytearray) and schema:
@@ -160,22 +156,20 @@ class LogWriter:
             cid = self._writer.register_channel(
                 topic=topic, message_encoding=message_encoding, schema_id=sid
             )
-            self._channels[key] = cid
-            self._seq[cid] = 0
-        return cid
+            channel = self._channels[key] = [cid, 0]
+        return channel
 
     # -- writing -------------------------------------------------------------------------
-    def _add(self, cid: int, data: bytes, log_ns: int, pub_ns: int) -> None:
-        seq = self._seq[cid]
-        self._seq[cid] = seq + 1
-        if self._chunk_first_ns is None:
+    def _add(self, channel: list[int], data: bytes, log_ns: int, pub_ns: int) -> None:
+        seq = channel[1]
+        channel[1] = seq + 1
+        first = self._chunk_first_ns
+        if first is None:
             self._chunk_first_ns = log_ns
-        elif abs(log_ns - self._chunk_first_ns) >= self._flush_ns:
+        elif abs(log_ns - first) >= self._flush_ns:
             self._flush_locked()
             self._chunk_first_ns = log_ns
-        self._writer.add_message(
-            channel_id=cid, log_time=log_ns, data=data, publish_time=pub_ns, sequence=seq
-        )
+        self._writer.add_message(channel[0], log_ns, data, pub_ns, seq)
         self._pending += 1
         self.messages_written += 1
         self.bytes_written += len(data)
@@ -184,8 +178,8 @@ class LogWriter:
         self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None
     ) -> None:
         """Log ``msg`` (a msgs dataclass) on ``topic`` and its Foxglove views."""
-        _times(topic, log_time_ns, publish_time_ns)  # refuse bad times before encoding
-        self.write_records(self._encoder.encode(topic, msg), log_time_ns, publish_time_ns)
+        log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)  # refused before encoding
+        self.write_records(self._encoder.encode(topic, msg), log_ns, pub_ns)
 
     def write_records(
         self, records: Sequence[Record], log_time_ns: int, publish_time_ns: int | None = None
@@ -194,13 +188,14 @@ class LogWriter:
         if not records:
             return
         log_ns, pub_ns = _times(records[0].topic, log_time_ns, publish_time_ns)
+        channels = self._channels
         with self._lock:
             self._check_open()
             for r in records:
-                cid = self._channels.get((r.topic, r.schema_name, "json"))
-                if cid is None:
-                    cid = self._channel_id(r.topic, r.schema_name, r.schema())
-                self._add(cid, r.data, log_ns, pub_ns)
+                channel = channels.get((r.topic, r.schema_name, "json"))
+                if channel is None:
+                    channel = self._channel_id(r.topic, r.schema_name, r.schema())
+                self._add(channel, r.data, log_ns, pub_ns)
 
     def write_encoded(
         self,
@@ -221,8 +216,10 @@ class LogWriter:
         log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)
         with self._lock:
             self._check_open()
-            cid = self._channel_id(topic, schema_name, schema, schema_encoding, message_encoding)
-            self._add(cid, bytes(data), log_ns, pub_ns)
+            channel = self._channel_id(
+                topic, schema_name, schema, schema_encoding, message_encoding
+            )
+            self._add(channel, bytes(data), log_ns, pub_ns)
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """An MCAP metadata record (written at once, outside the chunks)."""

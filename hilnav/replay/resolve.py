@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from hilnav.log.reader import iter_raw
+from hilnav.log.reader import topic_counts
 from hilnav.topics import SERVICE_INPUTS, split_log_topic
 
 PIPELINES = ("auto", "daemon", "landmark-slam", "velocity")
@@ -22,10 +22,10 @@ def guess_robot(path: str | Path, meta: dict[str, str]) -> str:
     if meta.get("robots"):
         return meta["robots"].split(",")[0]
     counts: Counter = Counter()
-    for r in iter_raw(path):
-        robot, kind = split_log_topic(r.topic)
+    for topic, n in topic_counts(path).items():
+        robot, kind = split_log_topic(topic)
         if robot and kind in SERVICE_INPUTS:
-            counts[robot] += 1
+            counts[robot] += n
     if not counts:
         raise ValueError("no device messages (odometry, gyro, gps, ir) in this log")
     return sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))[0][0]
@@ -50,10 +50,10 @@ def resolve_config(config_path: str | None, meta: dict[str, str]) -> tuple[Any, 
 
 
 def _kinds(src: Path) -> dict[str, set[str]]:
-    """Robot -> the topic names it has in the log."""
+    """Robot -> the topic names it has in the log (from the summary when it has one)."""
     out: dict[str, set[str]] = {}
-    for r in iter_raw(src):
-        robot, kind = split_log_topic(r.topic)
+    for topic in topic_counts(src):
+        robot, kind = split_log_topic(topic)
         if robot:
             out.setdefault(robot, set()).add(kind)
     return out
