@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from localization import cp_scalar as cps
 from localization.contractors import contract_range_bearing, fixpoint, odometry_displacement
 from localization.cp_config import CPConfig
 from localization.cp_solve import WindowArrays, solve_window
@@ -86,6 +87,10 @@ class SlidingWindow:
 
 class SlidingWindowCP(MessageIntake):
     """Array-level sliding-window constraint propagation for one robot (module doc)."""
+
+    #: Contract one box against peers on floats (``localization.cp_scalar``) where it
+    #: applies; False: always the array path (the reference, for tests and benches).
+    scalar_path: bool = True
 
     def __init__(self, config: CPConfig | None = None) -> None:
         self.cfg = config or CPConfig()
@@ -203,7 +208,18 @@ class SlidingWindowCP(MessageIntake):
         # A measurement off the state's stamp: the own motion and turn since are bounded.
         age_s = self._age_s(stamp_ns)
         grow = self.cfg.speed_bound_mps * age_s  # own motion between state and measurement
-        beta = beta.inflate(self.cfg.yaw_rate_bound_radps * age_s)
+        turn = self.cfg.yaw_rate_bound_radps * age_s
+        fast = (
+            _relative_scalar(x, y, th, peer_x, peer_y, rho, beta, grow, turn, self.cfg)
+            if self.scalar_path
+            else None
+        )
+        if fast is not None:
+            (xl, xh), (yl, yh), (tl, th_) = fast
+            self.position_box(IV.of(xl, xh), IV.of(yl, yh))
+            self._hard(self._w.hth, IV.of(tl, th_), angle=True)
+            return True
+        beta = beta.inflate(turn)
         (xi, yi, thi, *_), _ = fixpoint(
             contract_range_bearing,
             [x, y, th, peer_x.inflate(grow), peer_y.inflate(grow), rho, beta],
@@ -270,6 +286,32 @@ class SlidingWindowCP(MessageIntake):
         self._sol = (s.x, s.y, s.th)
         self._dirty = self._soft = False
         return self._sol
+
+
+def _relative_scalar(x, y, th, px, py, rho, beta, grow, turn, cfg) -> tuple | None:
+    """The scalar fast path of :meth:`SlidingWindowCP.relative` (``localization.cp_scalar``):
+    the contracted (x, y, theta) bounds, or None where it does not apply (the array path
+    then runs)."""
+    own = ((float(x.lo), float(x.hi)), (float(y.lo), float(y.hi)), (float(th.lo), float(th.hi)))
+    cols = [np.atleast_1d(a).tolist() for a in (px.lo, px.hi, py.lo, py.hi)]
+    cols += [np.atleast_1d(a).tolist() for a in (rho.lo, rho.hi, beta.lo, beta.hi)]
+    n = max(len(c) for c in cols)
+    if any(len(c) not in (1, n) for c in cols):
+        return None
+    cols = [c * n if len(c) == 1 else c for c in cols]
+    peers = [
+        (
+            cps.inflate((pxl, pxh), grow),
+            cps.inflate((pyl, pyh), grow),
+            (rl, rh),
+            cps.inflate((bl, bh), turn),
+        )
+        for pxl, pxh, pyl, pyh, rl, rh, bl, bh in zip(*cols, strict=True)
+    ]
+    try:
+        return cps.relative_fixpoint(own, peers, cfg.tol, 4)
+    except cps.Fallback:
+        return None
 
 
 def _meet(v: IV) -> IV:
