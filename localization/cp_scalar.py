@@ -32,6 +32,7 @@ Iv = tuple[float, float]
 _INF = math.inf
 _nx = math.nextafter
 _EMPTY: Iv = (_INF, -_INF)
+EMPTY = _EMPTY  # the canonical empty interval
 _PI_LO, _PI_HI = float(PI.lo), float(PI.hi)
 _HALF_PI_LO, _HALF_PI_HI = 0.5 * math.pi, _nx(0.5 * math.pi, _INF)
 _TWO_PI_HI = _nx(TWO_PI, _INF)
