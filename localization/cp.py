@@ -12,6 +12,9 @@ range-bearing measurements to other robots whose own boxes arrive over the bus.
   GPS, headings, position boxes, range-bearing to peers; prediction between solves);
 - ``localization.cp_solve``: the contraction of the window (heading chain, eq. (2)
   displacements, x/y chains with the q-relaxed GPS, optional HC4);
+- ``localization.cp_scalar``: the one-box contraction against peers on floats (the
+  daemon's case, one box per step; same bounds as the array path, which it falls back
+  to; ``SlidingWindowCP.scalar_path = False`` forces the array path);
 - here: :class:`CPLocalizer`, which turns messages into those calls, keeps the peers'
   latest boxes, and reports boxes as messages.
 

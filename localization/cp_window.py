@@ -352,7 +352,7 @@ def _peer_tuples(px: IV, py: IV, rho: IV, beta: IV) -> list[tuple[cps.Iv, ...]] 
     their shapes do not broadcast to one axis of peers)."""
     cols = [np.atleast_1d(a).tolist() for v in (px, py, rho, beta) for a in (v.lo, v.hi)]
     n = max(len(c) for c in cols)
-    if any(len(c) not in (1, n) or isinstance(c[0], list) for c in cols):
+    if n == 0 or any(len(c) not in (1, n) or isinstance(c[0], list) for c in cols):
         return None
     cols = [c * n if len(c) == 1 else c for c in cols]
     return [((a, b), (c, d), (e, f), (g, h)) for a, b, c, d, e, f, g, h in zip(*cols, strict=True)]

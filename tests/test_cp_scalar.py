@@ -191,3 +191,16 @@ def test_paper_scenario_same_boxes_and_containment():
         np.testing.assert_allclose(hs, ha, rtol=0, atol=1e-12)
         truth = np.array(rs.truth)
         assert np.all((ls[:, :2] <= truth[:, :2]) & (truth[:, :2] <= hs[:, :2]))
+
+
+def test_inconsistent_relative_is_refused_by_both_paths():
+    """A peer 10 m away measured at 1 m: the scalar path proves nothing empty by itself,
+    the array path decides, and both refuse it the same way."""
+    out = []
+    for scalar in (False, True):
+        loc = _localizer(scalar)
+        loc.start(0, IV.of(0.0, 0.1), IV.of(0.0, 0.1), IV.of(0.0, 0.1))
+        ok = loc.relative(0, IV.of(10.0, 10.1), IV.of(0.0, 0.1), IV.of(1.0, 1.1), IV.of(0.0, 0.1))
+        out.append((ok, dict(loc.skipped), [(float(v.lo), float(v.hi)) for v in loc.current()]))
+    assert out[0] == out[1]
+    assert out[0][0] is False
