@@ -25,7 +25,15 @@ import math
 import numpy as np
 
 from localization.interval import IV, meet_angle
-from localization.interval_trig import _RED_EPS, PI, TRANS_MARGIN, TWO_PI
+from localization.interval_trig import (
+    _RED_EPS,
+    _SINC_MAX2,
+    _SINC_MIN,
+    _U1,
+    PI,
+    TRANS_MARGIN,
+    TWO_PI,
+)
 
 Iv = tuple[float, float]
 
@@ -419,3 +427,45 @@ def relative_fixpoint(
             raise Fallback
         out.append((lo, hi))
     return out[0], out[1], out[2]
+
+
+def _sinc(u: float) -> float:
+    return 1.0 if u == 0.0 else math.sin(u) / u
+
+
+def sinc_half(d: Iv) -> Iv:
+    """``interval_trig.sinc_half`` (sin(d/2)/(d/2)) for a finite non-empty ``d``."""
+    dl, dh = d
+    m = _nx(max(abs(dl), abs(dh)) * 0.5, _INF)
+    mig = 0.0 if dl <= 0.0 <= dh else min(abs(dl), abs(dh))
+    g = max(_nx(mig * 0.5, -_INF), 0.0)
+    fm, fg = _sinc(m), _sinc(g)
+    inv_g = _INF if g == 0.0 else _nx(1.0 / g, _INF)
+    if g <= _U1:
+        hi = max(fg + TRANS_MARGIN, _SINC_MAX2 if m > _U1 else -_INF)
+    else:
+        hi = min(inv_g, _SINC_MAX2)
+    if m <= _U1:
+        lo = fm - TRANS_MARGIN
+    else:
+        lo = max(-inv_g, _SINC_MIN) if g > _U1 else _SINC_MIN
+    return lo, min(hi, 1.0)
+
+
+def odometry_displacement(
+    th0: Iv, th1: Iv, dsr: Iv, dsl: Iv, e: Iv, kappa: float, chord: bool
+) -> tuple[Iv, Iv, Iv]:
+    """``contractors.odometry_displacement`` (eq. (1)-(2) forward) for one step: finite
+    non-empty operands, :class:`Fallback` otherwise."""
+    for iv in (th0, th1, dsr, dsl, e):
+        if not (math.isfinite(iv[0]) and math.isfinite(iv[1])) or _e(iv):
+            raise Fallback
+    ds = mul(add(dsr, dsl), (0.5, 0.5))
+    dth = meet_ne(div(sub(dsr, dsl), e), sub(th1, th0))
+    phi = meet_ne(
+        add(th0, mul(dth, (kappa, kappa))), sub(th1, mul(dth, (1.0 - kappa, 1.0 - kappa)))
+    )
+    length = mul(ds, sinc_half(dth)) if chord else ds
+    if not (math.isfinite(length[0]) and math.isfinite(length[1])):
+        raise Fallback
+    return mul(length, cos(phi)), mul(length, sin(phi)), dth

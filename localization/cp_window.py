@@ -128,14 +128,36 @@ class SlidingWindowCP(MessageIntake):
             self._solve()
         if len(self._w.stamps) >= max(c.window, 1) + 1:
             self._slide()
-        x0, y0, th0 = self._latest()
-        dx, dy, dth = odometry_displacement(
-            th0, th0 + (r - l) / self.e, r, l, self.e, c.kappa, c.chord
-        )
         rr, ll = (float(r.lo), float(r.hi)), (float(l.lo), float(l.hi))
+        pred = self._predict_f(rr, ll) if self.scalar_path else None
+        if pred is None:
+            x0, y0, th0 = self._latest()
+            dx, dy, dth = odometry_displacement(
+                th0, th0 + (r - l) / self.e, r, l, self.e, c.kappa, c.chord
+            )
+            pred = (x0 + dx, y0 + dy, th0 + dth)
         self._w.append(stamp_ns, (None, None, None), rr, ll)
-        self._pred = (x0 + dx, y0 + dy, th0 + dth)
+        self._pred = pred
         self._dirty = self._soft = True
+
+    def _predict_f(self, r: cps.Iv, l: cps.Iv) -> tuple[IV, IV, IV] | None:
+        """The one-step prediction of :meth:`step` (eq. (2) forward) on floats; None
+        where the scalar path does not apply (an unbounded or empty heading)."""
+        x0, y0, th0 = self._latest_f()
+        e = (float(self.e.lo), float(self.e.hi))
+        try:
+            dx, dy, dth = cps.odometry_displacement(
+                th0,
+                cps.add(th0, cps.div(cps.sub(r, l), e)),
+                r,
+                l,
+                e,
+                self.cfg.kappa,
+                self.cfg.chord,
+            )
+        except cps.Fallback:
+            return None
+        return tuple(IV.of(*cps.add(a, b)) for a, b in ((x0, dx), (y0, dy), (th0, dth)))  # type: ignore[return-value]
 
     def _slide(self) -> None:
         """Drop the oldest state; its knowledge survives as the next state's prior."""

@@ -204,3 +204,19 @@ def test_inconsistent_relative_is_refused_by_both_paths():
         out.append((ok, dict(loc.skipped), [(float(v.lo), float(v.hi)) for v in loc.current()]))
     assert out[0] == out[1]
     assert out[0][0] is False
+
+
+@SEEDED
+@given(bound, width, st.floats(-0.5, 0.5), st.floats(0.0, 0.05), st.floats(-0.5, 0.5))
+def test_odometry_displacement_matches_array_path(th, tw, r, rw, l):
+    """The one-step prediction of SlidingWindowCP.step (eq. (2) forward), both paths."""
+    from localization.contractors import odometry_displacement
+    from localization.interval_trig import sinc_half
+
+    th0, rr, ll, e = (th, th + tw), (r - rw, r + rw), (l - rw, l + rw), (0.33, 0.33)
+    th1 = cps.add(th0, cps.div(cps.sub(rr, ll), e))
+    ref = odometry_displacement(_IV(th0), _IV(th1), _IV(rr), _IV(ll), _IV(e), 0.5, True)
+    out = cps.odometry_displacement(th0, th1, rr, ll, e, 0.5, True)
+    for o, a in zip(out, ref, strict=True):
+        assert _same(o, a, TOL)
+    assert _same(cps.sinc_half((th, th + tw)), sinc_half(IV.of(th, th + tw)), TOL)
