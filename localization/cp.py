@@ -12,6 +12,9 @@ range-bearing measurements to other robots whose own boxes arrive over the bus.
   GPS, headings, position boxes, range-bearing to peers; prediction between solves);
 - ``localization.cp_solve``: the contraction of the window (heading chain, eq. (2)
   displacements, x/y chains with the q-relaxed GPS, optional HC4);
+- ``localization.cp_scalar``: the one-box contraction against peers on floats (the
+  daemon's case, one box per step; same bounds as the array path, which it falls back
+  to; ``SlidingWindowCP.scalar_path = False`` forces the array path);
 - here: :class:`CPLocalizer`, which turns messages into those calls, keeps the peers'
   latest boxes, and reports boxes as messages.
 
@@ -42,9 +45,11 @@ from typing import ClassVar
 
 import numpy as np
 
+from localization import cp_scalar as cps
 from localization.cp_config import CPConfig
 from localization.cp_window import SlidingWindowCP
 from localization.interval import IV, align_angle
+from localization.interval_trig import TWO_PI
 from localization.odometry import wheels_from_poses
 from msgs import (
     GpsFix,
@@ -54,6 +59,8 @@ from msgs import (
     RelativeMeasurement,
     RobotOdometry,
 )
+
+_TWO_PI_HI = math.nextafter(TWO_PI, math.inf)
 
 
 def _iv(i: Interval) -> IV:
@@ -102,8 +109,21 @@ class CPLocalizer(SlidingWindowCP):
         """The current box as a message (theta shifted next to (-pi, pi])."""
         if not self.started:
             raise RuntimeError("no state yet")
-        x, y, th = self.current()
-        return self._pose_box(self._w.stamps[-1], x, y, th)
+        if not self.scalar_path:
+            x, y, th = self.current()
+            return self._pose_box(self._w.stamps[-1], x, y, th)
+        (xl, xh), (yl, yh), (tl, th_) = self._latest_f()
+        if math.isfinite(tl) and math.isfinite(th_):  # align_angle(th, 0.0) on floats
+            k = float(round((0.0 - (0.5 * tl + 0.5 * th_)) / TWO_PI))
+            if k != 0.0:
+                tl, th_ = cps.add((tl, th_), cps.mul((k, k), (TWO_PI, _TWO_PI_HI)))
+        return PoseBox(
+            stamp_ns=int(self._w.stamps[-1]),
+            robot=self.robot,
+            x=Interval(xl, xh),
+            y=Interval(yl, yh),
+            theta=Interval(tl, th_),
+        )
 
     def window_boxes(self) -> list[PoseBox]:
         stamps, x, y, th = self.window_arrays()
@@ -196,6 +216,8 @@ class CPLocalizer(SlidingWindowCP):
         if not use:
             return None
         c, now = self.cfg, self._w.stamps[-1]
+        if self.scalar_path and self._relatives_f(use, now):
+            return self.box()
         # Peer box -> measurement time (peer's motion), measurement -> state time (own).
         dt_peer = np.array([abs(m.stamp_ns - p.stamp_ns) * 1e-9 for m, p in use])
         dt_own = np.array([abs(m.stamp_ns - now) * 1e-9 for m, _ in use])
@@ -207,3 +229,25 @@ class CPLocalizer(SlidingWindowCP):
         beta = beta.inflate(c.yaw_rate_bound_radps * dt_own)
         ok = self.relative(now, px, py, rho, beta)
         return self.box() if ok else None
+
+    def _relatives_f(self, use: list[tuple[RelativeMeasurement, PoseBox]], now: int) -> bool:
+        """:meth:`feed_relatives`' boxes as floats, through the scalar path
+        (:meth:`SlidingWindowCP.relative_f`); False where it does not apply."""
+        c, peers = self.cfg, []
+        for m, p in use:
+            dt_own = abs(m.stamp_ns - now) * 1e-9
+            grow = c.speed_bound_mps * (abs(m.stamp_ns - p.stamp_ns) * 1e-9 + dt_own)
+            rho = _around(m.range_m, m.range_bound_m)
+            beta = cps.inflate(
+                _around(m.bearing_rad, m.bearing_bound_rad), c.yaw_rate_bound_radps * dt_own
+            )
+            px = cps.inflate((p.x.lo, p.x.hi), grow)
+            py = cps.inflate((p.y.lo, p.y.hi), grow)
+            peers.append((px, py, rho, beta))
+        return bool(self.relative_f(now, peers))
+
+
+def _around(mid: float, rad: float) -> cps.Iv:
+    """``IV.around`` for one interval."""
+    r = abs(rad)
+    return math.nextafter(mid - r, -math.inf), math.nextafter(mid + r, math.inf)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from localization import cp_scalar as cps
 from localization.contractors import contract_range_bearing, fixpoint, odometry_displacement
 from localization.cp_config import CPConfig
 from localization.cp_solve import WindowArrays, solve_window
@@ -87,6 +88,10 @@ class SlidingWindow:
 class SlidingWindowCP(MessageIntake):
     """Array-level sliding-window constraint propagation for one robot (module doc)."""
 
+    #: Contract one box against peers on floats (``localization.cp_scalar``) where it
+    #: applies; False: always the array path (the reference, for tests and benches).
+    scalar_path: bool = True
+
     def __init__(self, config: CPConfig | None = None) -> None:
         self.cfg = config or CPConfig()
         self._w = SlidingWindow()
@@ -123,14 +128,36 @@ class SlidingWindowCP(MessageIntake):
             self._solve()
         if len(self._w.stamps) >= max(c.window, 1) + 1:
             self._slide()
-        x0, y0, th0 = self._latest()
-        dx, dy, dth = odometry_displacement(
-            th0, th0 + (r - l) / self.e, r, l, self.e, c.kappa, c.chord
-        )
         rr, ll = (float(r.lo), float(r.hi)), (float(l.lo), float(l.hi))
+        pred = self._predict_f(rr, ll) if self.scalar_path else None
+        if pred is None:
+            x0, y0, th0 = self._latest()
+            dx, dy, dth = odometry_displacement(
+                th0, th0 + (r - l) / self.e, r, l, self.e, c.kappa, c.chord
+            )
+            pred = (x0 + dx, y0 + dy, th0 + dth)
         self._w.append(stamp_ns, (None, None, None), rr, ll)
-        self._pred = (x0 + dx, y0 + dy, th0 + dth)
+        self._pred = pred
         self._dirty = self._soft = True
+
+    def _predict_f(self, r: cps.Iv, l: cps.Iv) -> tuple[IV, IV, IV] | None:
+        """The one-step prediction of :meth:`step` (eq. (2) forward) on floats; None
+        where the scalar path does not apply (an unbounded or empty heading)."""
+        x0, y0, th0 = self._latest_f()
+        e = (float(self.e.lo), float(self.e.hi))
+        try:
+            dx, dy, dth = cps.odometry_displacement(
+                th0,
+                cps.add(th0, cps.div(cps.sub(r, l), e)),
+                r,
+                l,
+                e,
+                self.cfg.kappa,
+                self.cfg.chord,
+            )
+        except cps.Fallback:
+            return None
+        return tuple(IV.of(*cps.add(a, b)) for a, b in ((x0, dx), (y0, dy), (th0, dth)))  # type: ignore[return-value]
 
     def _slide(self) -> None:
         """Drop the oldest state; its knowledge survives as the next state's prior."""
@@ -167,21 +194,36 @@ class SlidingWindowCP(MessageIntake):
         self._hard(self._w.hy, y)
 
     def _hard(self, lst: list[list[float]], iv: IV, angle: bool = False) -> None:
+        self._hard_f(lst, float(iv.lo), float(iv.hi), angle)
+
+    def _hard_f(self, lst: list[list[float]], lo: float, hi: float, angle: bool = False) -> None:
         cur = lst[-1]
-        if angle:
-            # Meet modulo 2*pi, inside what is known of this heading already (its hard box
-            # and the latest solution or prediction: all in the chain's representation),
-            # over every branch of ``iv`` that meets it.
+        if angle and not self.scalar_path:  # the reference of the scalar path
+            iv = IV.of(lo, hi)
             known = IV.of(cur[0], cur[1]) & self._theta_ref()
             if np.isneginf(known.lo) and np.isposinf(known.hi):
-                # Nothing known of any heading of the window yet: the representation is
-                # free (shifting every heading by 2*pi*k keeps every constraint), so the
-                # first heading fixes it on the branch of ``iv`` next to 0.
                 iv = align_angle(iv, 0.0)
             else:
                 iv = meet_angle(known, iv)
-        cur[0] = max(cur[0], float(iv.lo))
-        cur[1] = min(cur[1], float(iv.hi))
+            lo, hi = float(iv.lo), float(iv.hi)
+        elif angle:
+            # Meet modulo 2*pi, inside what is known of this heading already (its hard box
+            # and the latest solution or prediction: all in the chain's representation),
+            # over every branch of ``iv`` that meets it.
+            ref = self._theta_ref()
+            known = cps.meet((cur[0], cur[1]), (float(ref.lo), float(ref.hi)))
+            if known == (-math.inf, math.inf):
+                # Nothing known of any heading of the window yet: the representation is
+                # free (shifting every heading by 2*pi*k keeps every constraint), so the
+                # first heading fixes it on the branch of ``iv`` next to 0.
+                iv = align_angle(IV.of(lo, hi), 0.0)
+                lo, hi = float(iv.lo), float(iv.hi)
+            elif lo <= hi:
+                lo, hi = cps.meet_angle_s(known, (lo, hi))
+            else:
+                lo, hi = cps.EMPTY
+        cur[0] = max(cur[0], lo)
+        cur[1] = min(cur[1], hi)
         self._dirty = True
 
     def _theta_ref(self) -> IV:
@@ -199,11 +241,16 @@ class SlidingWindowCP(MessageIntake):
         ``peer_x x peer_y`` (valid at ``stamp_ns``; arrays of shape (m,) for m peers at
         once). Contracts the latest state; returns False (and changes nothing) if the
         measurements are inconsistent with it."""
+        if self.scalar_path:
+            peers = _peer_tuples(peer_x, peer_y, rho, beta)
+            if peers is not None and self.relative_f(stamp_ns, peers):
+                return True
         x, y, th = self._latest()
         # A measurement off the state's stamp: the own motion and turn since are bounded.
         age_s = self._age_s(stamp_ns)
         grow = self.cfg.speed_bound_mps * age_s  # own motion between state and measurement
-        beta = beta.inflate(self.cfg.yaw_rate_bound_radps * age_s)
+        turn = self.cfg.yaw_rate_bound_radps * age_s
+        beta = beta.inflate(turn)
         (xi, yi, thi, *_), _ = fixpoint(
             contract_range_bearing,
             [x, y, th, peer_x.inflate(grow), peer_y.inflate(grow), rho, beta],
@@ -219,11 +266,35 @@ class SlidingWindowCP(MessageIntake):
         self._hard(self._w.hth, thi, angle=True)
         return True
 
+    def relative_f(self, stamp_ns: int, peers: list[tuple[cps.Iv, ...]]) -> bool | None:
+        """:meth:`relative` on floats (``localization.cp_scalar``): ``peers`` holds
+        (peer x, peer y, rho, beta) bounds per peer. True when the box was contracted;
+        None where the scalar path does not apply (unbounded or empty boxes, a proven
+        inconsistency): the caller then runs :meth:`relative`'s array path."""
+        age_s = self._age_s(stamp_ns)
+        grow = self.cfg.speed_bound_mps * age_s
+        turn = self.cfg.yaw_rate_bound_radps * age_s
+        inf = cps.inflate
+        ps = [(inf(px, grow), inf(py, grow), r, inf(b, turn)) for px, py, r, b in peers]
+        try:
+            (xl, xh), (yl, yh), (tl, th) = cps.relative_fixpoint(
+                self._latest_f(), ps, self.cfg.tol, 4
+            )
+        except cps.Fallback:
+            return None
+        self._hard_f(self._w.hx, xl, xh)
+        self._hard_f(self._w.hy, yl, yh)
+        self._hard_f(self._w.hth, tl, th, angle=True)
+        return True
+
     def _latest(self) -> tuple[IV, IV, IV]:
-        """The latest box without a window solve when possible: the last solution (or
-        the one-step prediction from it, met with this step's GPS box unless outliers
-        are tolerated) met with the hard boxes added since. Valid, and the window solve
-        at the next step (or :meth:`solve`) brings in the smoothing and relaxation."""
+        """The latest box without a window solve when possible (:meth:`_latest_f`)."""
+        if not self.scalar_path:
+            return self._latest_iv()
+        return tuple(IV.of(lo, hi) for lo, hi in self._latest_f())  # type: ignore[return-value]
+
+    def _latest_iv(self) -> tuple[IV, IV, IV]:
+        """:meth:`_latest_f` on interval arrays (the reference of the scalar path)."""
         w = self._w
         n = len(w.stamps)
         if self._sol is not None and not self._soft and self._sol[0].lo.shape[0] == n:
@@ -233,14 +304,40 @@ class SlidingWindowCP(MessageIntake):
             g = w.gps[-1]
             if g is not None and self.cfg.gps_outliers == 0:
                 x, y = x & IV.of(g[0], g[1]), y & IV.of(g[2], g[3])
-                if bool(x.is_empty() | y.is_empty()):  # inconsistent fix: let the solver relax
+                if bool(x.is_empty() | y.is_empty()):
                     x, y, th = (v[-1] for v in self._solve())
         else:
             x, y, th = (v[-1] for v in self._solve())
         hx, hy, hth = w.hard_latest()
+        return x & hx, y & hy, th & hth
+
+    def _latest_f(self) -> tuple[cps.Iv, cps.Iv, cps.Iv]:
+        """The latest box as float bounds, without a window solve when possible: the
+        last solution (or the one-step prediction from it, met with this step's GPS box
+        unless outliers are tolerated) met with the hard boxes added since. Valid, and
+        the window solve at the next step (or :meth:`solve`) brings in the smoothing and
+        relaxation. Empties are (inf, -inf)."""
+        w = self._w
+        n = len(w.stamps)
+        sol = self._sol
+        if sol is not None and not self._soft and sol[0].lo.shape[0] == n:
+            x, y, th = (_last(v) for v in sol)
+        elif self._pred is not None and sol is not None and sol[0].lo.shape[0] == n - 1:
+            x, y, th = ((float(v.lo), float(v.hi)) for v in self._pred)
+            g = w.gps[-1]
+            if g is not None and self.cfg.gps_outliers == 0:
+                x, y = cps.meet(x, (g[0], g[1])), cps.meet(y, (g[2], g[3]))
+                if x == cps.EMPTY or y == cps.EMPTY:  # inconsistent fix: let the solver relax
+                    x, y, th = (_last(v) for v in self._solve())
+        else:
+            x, y, th = (_last(v) for v in self._solve())
         # hth and th are both in the chain's representation of the heading (every hard
         # heading is met inside it by _hard): a plain intersection.
-        return x & hx, y & hy, th & hth
+        return (
+            cps.meet(x, tuple(w.hx[-1])),
+            cps.meet(y, tuple(w.hy[-1])),
+            cps.meet(th, tuple(w.hth[-1])),
+        )
 
     def solve(self) -> tuple[IV, IV, IV]:
         """Solve the whole window now; returns the latest box."""
@@ -270,6 +367,21 @@ class SlidingWindowCP(MessageIntake):
         self._sol = (s.x, s.y, s.th)
         self._dirty = self._soft = False
         return self._sol
+
+
+def _peer_tuples(px: IV, py: IV, rho: IV, beta: IV) -> list[tuple[cps.Iv, ...]] | None:
+    """The per-peer float bounds of :meth:`SlidingWindowCP.relative`'s arrays (None if
+    their shapes do not broadcast to one axis of peers)."""
+    cols = [np.atleast_1d(a).tolist() for v in (px, py, rho, beta) for a in (v.lo, v.hi)]
+    n = max(len(c) for c in cols)
+    if n == 0 or any(len(c) not in (1, n) or isinstance(c[0], list) for c in cols):
+        return None
+    cols = [c * n if len(c) == 1 else c for c in cols]
+    return [((a, b), (c, d), (e, f), (g, h)) for a, b, c, d, e, f, g, h in zip(*cols, strict=True)]
+
+
+def _last(v: IV) -> cps.Iv:
+    return float(v.lo[-1]), float(v.hi[-1])
 
 
 def _meet(v: IV) -> IV:
