@@ -9,25 +9,28 @@ error / range is +3.5 % straight ahead and -10 % at the edge of the field of vie
 is gone (docs/algorithms.md). The pixel count is quantised, so the depth error grows as
 Z^2 (dZ = Z^2 dh / (f H)).
 
-With the robot's state s = (x, y, theta, k, kw, c, d, beta, e)
-(localization/mrclam_motion.py) and the target at m = (mx, my), numerics.rangebearing
-gives r = |m - p| and phi0 = atan2(dy, dx) - theta. The camera's error states: c its range
-scale error (focal length and tube height calibration), d a range offset (m), beta its
-bearing offset (rad: the camera's yaw against the motion-capture heading) and e a range
-scale error that grows across the image (per rad of bearing: on Dataset 6 -0.04 for
-robot 5, within +/-0.015 for the others). Then, with g = 1 + c + e psi,
+With the robot's state s (localization/mrclam_motion.py) and the target at m = (mx, my),
+numerics.rangebearing gives r = |m - p| and phi0 = atan2(dy, dx) - theta. The camera's
+error states: c its range scale error (focal length and tube height calibration), d a
+range offset (m), beta its bearing offset (rad: the camera's yaw against the
+motion-capture heading), e and q a range scale error that changes across the image (per
+rad and rad^2 of bearing: lens distortion, a tilted sensor), and u, v its common range
+(relative) and bearing errors, which drift over seconds and which every target seen
+shares. Then, with g = 1 + c + u + e psi + q psi^2,
 
-    psi = wrap(phi0 + beta)                              (the bearing reported)
+    psi = wrap(phi0 + beta + v)                          (the bearing reported)
     rho = g r cos(psi) + d                               (the range reported, "depth")
     rho = g r + d                                        ("range": the Euclidean model)
 
 Jacobians (checked against finite differences in tests/test_mrclam_ekf.py), with
 H_s = d(r, phi0)/d(x, y, theta) and H_m = d(r, phi0)/d(mx, my) of numerics.rangebearing
-and rho_psi = d rho / d psi = e r cos(psi) - g r sin(psi) (depth; e r for "range"):
+and rho_psi = d rho / d psi = (e + 2 q psi) r cos(psi) - g r sin(psi) (depth; without
+the sine for "range"):
 
     d rho / d pose = g cos(psi) H_s[0] + rho_psi H_s[1]      (cos(psi) = 1 for "range")
-    d rho / dc = r cos psi,  d rho / de = psi r cos psi,  d rho / dd = 1,
-    d rho / d beta = rho_psi;  d psi / d pose = H_s[1],  d psi / d beta = 1;
+    d rho / dc = d rho / du = r cos psi,  d rho / de = psi r cos psi,
+    d rho / dq = psi^2 r cos psi,  d rho / dd = 1,  d rho / d beta = d rho / dv = rho_psi;
+    d psi / d pose = H_s[1],  d psi / d beta = d psi / dv = 1;
     the same with H_m for the target. The filter takes g cos(psi) at the measured
     bearing (``psi_m``): then rho does not depend on the heading, and the bearing noise
     moves into the range's (camera_measurement's T).
@@ -43,7 +46,7 @@ import math
 
 import numpy as np
 
-from localization.mrclam_motion import IBETA, IC, ID, IE, NX
+from localization.mrclam_motion import IBETA, IC, ID, IE, IQ, IU, IV, NX
 from numerics.angles import wrap_angle
 from numerics.rangebearing import range_bearing
 
@@ -63,22 +66,23 @@ def camera_measurement(
     3 m); the bearing's noise then enters the range: the measurement noise is T R T^T
     with T = [[1, -rho_psi], [0, 1]] (T = I without psi_m)."""
     (r, phi0), hs3, hm = range_bearing(s[:3], mx, my)
-    c, d, beta, e = float(s[IC]), float(s[ID]), float(s[IBETA]), float(s[IE])
-    psi = wrap_angle(phi0 + beta)
+    c, d, e, q = float(s[IC]) + float(s[IU]), float(s[ID]), float(s[IE]), float(s[IQ])
+    psi = wrap_angle(phi0 + float(s[IBETA]) + float(s[IV]))
     at = psi if psi_m is None else float(psi_m)
-    g = 1.0 + c + e * at
+    g = 1.0 + c + e * at + q * at * at
     cp, sp = (math.cos(at), math.sin(at)) if model == "depth" else (1.0, 0.0)
     rho = g * r * cp + d
-    rho_psi = e * r * cp - g * r * sp
+    rho_psi = (e + 2.0 * q * at) * r * cp - g * r * sp
     k = rho_psi if psi_m is None else 0.0  # d rho / d psi through the state
     h = np.zeros((2, NX))
     h[0, :3] = g * cp * hs3[0] + k * hs3[1]
-    h[0, IC] = r * cp
+    h[0, IC] = h[0, IU] = r * cp
     h[0, ID] = 1.0
-    h[0, IBETA] = k
+    h[0, IBETA] = h[0, IV] = k
     h[0, IE] = at * r * cp
+    h[0, IQ] = at * at * r * cp
     h[1, :3] = hs3[1]
-    h[1, IBETA] = 1.0
+    h[1, IBETA] = h[1, IV] = 1.0
     hmo = np.array([g * cp * hm[0] + k * hm[1], hm[1]])
     t = np.eye(2)
     if psi_m is not None:
@@ -105,9 +109,10 @@ def target_position(
     None when the measurement cannot be inverted (range at or below the offset, or the
     depth model with |psi| >= 1.2 rad, outside any camera's field of view)."""
     rho, psi = float(z[0]), float(z[1])
-    c, d, beta, e = float(s[IC]), float(s[ID]), float(s[IBETA]), float(s[IE])
+    c, d, e, q = float(s[IC]) + float(s[IU]), float(s[ID]), float(s[IE]), float(s[IQ])
+    beta = float(s[IBETA]) + float(s[IV])
     depth = model == "depth"
-    g = 1.0 + c + e * psi
+    g = 1.0 + c + e * psi + q * psi * psi
     if (depth and abs(psi) >= 1.2) or rho - d <= 0.0 or g <= 0.0:
         return None
     cp = math.cos(psi) if depth else 1.0
@@ -120,10 +125,11 @@ def target_position(
     js[:, 0] = (1.0, 0.0)
     js[:, 1] = (0.0, 1.0)
     js[:, 2] = r * un
-    js[:, IBETA] = -r * un
-    js[:, IC] = -r / g * u
+    js[:, IBETA] = js[:, IV] = -r * un
+    js[:, IC] = js[:, IU] = -r / g * u
     js[:, IE] = -r * psi / g * u
+    js[:, IQ] = -r * psi * psi / g * u
     js[:, ID] = -1.0 / (g * cp) * u
-    r_psi = r * ((math.tan(psi) if depth else 0.0) - e / g)
+    r_psi = r * ((math.tan(psi) if depth else 0.0) - (e + 2.0 * q * psi) / g)
     jz = np.column_stack([u / (g * cp), r * un + r_psi * u])
     return p, js, jz

@@ -41,34 +41,46 @@ class MrclamEkfConfig:
     #: "range" (Euclidean range), localization/mrclam_camera.py.
     camera_model: str = "depth"
     #: Prior sigmas of the camera's range scale error c, range offset d (m), bearing
-    #: offset beta (rad) and range scale slope across the image e (per rad), all
-    #: starting at 0 (0 switches a state off); they random-walk so that their variance
-    #: grows by the prior's over ``camera_drift_s``.
+    #: offset beta (rad) and range scale terms across the image e (per rad) and q (per
+    #: rad^2), all starting at 0 (0 switches a state off); they random-walk so that
+    #: their variance grows by the prior's over ``camera_drift_s``.
     camera_scale_sigma: float = 0.05
     camera_offset_sigma_m: float = 0.05
     camera_bearing_sigma_rad: float = 0.01
     camera_slope_sigma: float = 0.03
+    camera_distortion_sigma: float = 0.05
     camera_drift_s: float = 3600.0
+    #: The camera's errors common to every target it sees (range relative, bearing rad):
+    #: Gauss-Markov states u, v with these stationary sigmas and correlation times.
+    camera_common_sigma: tuple[float, float] = (0.0033, 0.0054)
+    camera_common_tau_s: tuple[float, float] = (15.0, 12.0)
+    #: Robots' barcode tubes read this much farther than the landmarks' (m).
+    robot_target_offset_m: float = 0.025
     #: Range sigma^2 = range_sigma_m^2 + (range_sigma_rel r)^2 + (range_sigma_quad r^2)^2;
     #: bearing sigma^2 = bearing_sigma_rad^2 + (bearing_sigma_lateral_m / r)^2, r the
-    #: predicted range (so that a wrong range cannot widen its own gate).
+    #: predicted range (so that a wrong range cannot widen its own gate): the errors
+    #: left by the camera model, of which the common part (above) is in the state.
     range_sigma_m: float = 0.02
     range_sigma_rel: float = 0.0
     range_sigma_quad: float = 0.002
     bearing_sigma_rad: float = 0.0095
     bearing_sigma_lateral_m: float = 0.024
-    #: Correlation time of a robot's camera errors (AR(1) variance inflation): the
-    #: integral time scale of the errors left by the camera model.
-    error_correlation_s: float = 8.0
-    #: "robot": one error process per robot (all subjects); "subject": per subject.
+    #: Of those variances (range, bearing): the white part, and the part correlated in
+    #: time for one target (the rest is the common part): the latter is inflated by
+    #: the AR(1) factor of the time since the target's previous measurement used, with
+    #: the integral time scales error_correlation_s of its autocorrelation.
+    error_white_fraction: tuple[float, float] = (0.53, 0.52)
+    error_target_fraction: tuple[float, float] = (0.33, 0.24)
+    error_correlation_s: tuple[float, float] = (20.0, 12.0)
+    #: "subject": the correlated part is per target; "robot": one process per robot.
     correlation_scope: str = "robot"
     #: Measurements of one robot at most frame_gap_s after the first of a camera frame
-    #: are that frame. Their errors are correlated at zero lag (rho across targets, range
-    #: and bearing): the k-th measurement used of a frame has its variance multiplied by
-    #: 1 / (k / (1 + (k - 1) rho) - (k - 1) / (1 + (k - 2) rho)), so that k of them
-    #: carry the information of the mean of k equicorrelated measurements.
+    #: are that frame. Their white errors are correlated across targets at zero lag
+    #: (rho, range and bearing): the k-th measurement used of a frame has its white
+    #: variance multiplied by 1 / (k / (1 + (k - 1) rho) - (k - 1) / (1 + (k - 2) rho)),
+    #: so that k of them carry the information of the mean of k equicorrelated ones.
     frame_gap_s: float = 0.01
-    frame_correlation: tuple[float, float] = (0.29, 0.56)
+    frame_correlation: tuple[float, float] = (0.22, 0.49)
     #: Chi-square gate probability (2 dof) for landmark and robot measurements.
     gate_probability: float = 0.999
     #: Robot-to-robot measurements: "joint" (one filter over every robot, the

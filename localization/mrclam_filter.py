@@ -36,7 +36,7 @@ import numpy as np
 from localization.covariance_intersection import split_ci_update, split_ci_weight
 from localization.mrclam_camera import camera_measurement, camera_sigmas, target_position
 from localization.mrclam_config import MrclamEkfConfig
-from localization.mrclam_motion import IBETA, IC, ID, IE, IK, IKW, NX, biased_motion
+from localization.mrclam_motion import IBETA, IC, ID, IE, IK, IKW, IQ, IU, IV, NX, biased_motion
 from numerics import ekf
 from numerics.angles import wrap_angle
 
@@ -106,7 +106,9 @@ class JointEkf:
         self.at: dict[int, int] = {}  # robot -> offset of its block in P
         self.P = np.zeros((0, 0))
         self.correlated = False
-        self.last: dict[tuple[int, int], tuple[float, float, int]] = {}
+        # (robot, subject or 0): (time of the last measurement used, 0);
+        # (robot, -1): (time of its current camera frame, measurements used in it)
+        self.last: dict[tuple[int, int], tuple[float, int]] = {}
         self.rho = np.asarray(cfg.frame_correlation, float)
         c = cfg
         self.q_cam = np.array(
@@ -115,9 +117,12 @@ class JointEkf:
                 c.camera_offset_sigma_m,
                 c.camera_bearing_sigma_rad,
                 c.camera_slope_sigma,
+                c.camera_distortion_sigma,
             ]
         )
         self.q_cam = self.q_cam**2 / c.camera_drift_s
+        self.white = np.asarray(c.error_white_fraction, float)
+        self.target = np.asarray(c.error_target_fraction, float)
 
     def add_robot(self, n: int, t0: float, pose: np.ndarray, cov3: np.ndarray) -> None:
         """Robot n from time t0 at ``pose`` with covariance ``cov3``; its biases and
@@ -137,8 +142,10 @@ class JointEkf:
             c.camera_offset_sigma_m,
             c.camera_bearing_sigma_rad,
             c.camera_slope_sigma,
+            c.camera_distortion_sigma,
+            *c.camera_common_sigma,
         )
-        for i, sg in zip((IK, IKW, IC, ID, IBETA, IE), sig, strict=True):
+        for i, sg in zip((IK, IKW, IC, ID, IBETA, IE, IQ, IU, IV), sig, strict=True):
             b[i, i] = sg * sg
         self.P, self.at[n] = p, k
         self.r[n] = RobotState(n, s, t0, t0)
@@ -188,7 +195,7 @@ class JointEkf:
         if dt <= 0.0:
             return
         c = self.cfg
-        s, f, g = biased_motion(rs.s, rs.v, rs.w, dt, c.bias_tau_s)
+        s, f, g = biased_motion(rs.s, rs.v, rs.w, dt, c.bias_tau_s, c.camera_common_tau_s)
         sv = c.v_sigma_mps + c.v_sigma_rel * abs(rs.v)
         qv = sv * sv * c.noise_window_s
         qw = c.w_noise_time + c.w_noise_turn * abs(rs.w)
@@ -197,7 +204,9 @@ class JointEkf:
         a2 = f[IK, IK] ** 2
         p[IK, IK] += c.speed_scale_sigma**2 * (1.0 - a2)
         p[IKW, IKW] += c.turn_scale_sigma**2 * (1.0 - a2)
-        p[IC:, IC:] += np.diag(self.q_cam * dt)
+        p[IC:IU, IC:IU] += np.diag(self.q_cam * dt)
+        for i, sg in zip((IU, IV), c.camera_common_sigma, strict=True):
+            p[i, i] += sg * sg * (1.0 - f[i, i] ** 2)
         self.P[b, b] = p
         if self.correlated:
             rs.phi = f if rs.phi is None else f @ rs.phi
@@ -226,16 +235,17 @@ class JointEkf:
     # ------------------------------------------------------------------ noise
     def _noise(self, n: int, subj: int, t: float, r_hat: float):
         """(R, R inflated, token for _used) of robot n's measurement at t: the camera
-        sigmas at the predicted range; inflated by the AR(1) factor of the time since
-        the previous frame used (of any subject, or of this one, by scope) and by the
-        frame factor of the k-th measurement used in this frame."""
+        sigmas at the predicted range without the common part (in the state), R = its
+        white and per-target parts; inflated: the white part by the frame factor of the
+        k-th measurement used in this frame, the per-target part by the AR(1) factor of
+        the time since the target's (or, by scope, the robot's) last measurement used."""
         c = self.cfg
         key = (n, subj if c.correlation_scope == "subject" else 0)
+        frame = self.last.get((n, -1))
+        k = frame[1] + 1 if frame is not None and t - frame[0] <= c.frame_gap_s else 1
+        frame_t = frame[0] if k > 1 else t
         last = self.last.get(key)
-        if last is not None and t - last[0] <= c.frame_gap_s:
-            frame_t, dt, k = last[0], last[1], last[2] + 1
-        else:
-            frame_t, dt, k = t, (math.inf if last is None else t - last[0]), 1
+        dt = math.inf if last is None else t - last[0]
         sr, sb = camera_sigmas(
             r_hat,
             c.range_sigma_m,
@@ -245,11 +255,17 @@ class JointEkf:
             c.bearing_sigma_lateral_m,
         )
         var = np.array([sr * sr, sb * sb])
-        infl = ar1_inflation(dt, c.error_correlation_s) * frame_factor(k, self.rho)
-        return np.diag(var), np.diag(var * infl), (key, (frame_t, dt, k))
+        ar1 = np.array([ar1_inflation(dt, tau) for tau in c.error_correlation_s])
+        infl = self.white * frame_factor(k, self.rho) + self.target * ar1
+        return (
+            np.diag(var * (self.white + self.target)),
+            np.diag(var * infl),
+            (key, (t, 0), (n, -1), (frame_t, k)),
+        )
 
     def _used(self, token) -> None:
         self.last[token[0]] = token[1]
+        self.last[token[2]] = token[3]
 
     # ------------------------------------------------------------------ updates
     def _kalman(self, hs: dict[int, np.ndarray], nu, r_gate, r_upd, n, subj, t, kind) -> bool:
@@ -301,6 +317,7 @@ class JointEkf:
             rs.counts["robot_on_robot"] += 1
             return
         zhat, hs, hm, tm = camera_measurement(rs.s, rj.s[0], rj.s[1], self.cfg.camera_model, z[1])
+        zhat[0] += self.cfg.robot_target_offset_m
         hj = np.zeros((2, NX))
         hj[:, :2] = hm
         r, ri, token = self._noise(n, j, t, rng)
@@ -332,6 +349,7 @@ class JointEkf:
             return None
         cpos = cj[:2, :2] + np.eye(2) * (c.peer_speed_mps * (t - tj)) ** 2
         zhat, hs, hm, tm = camera_measurement(rs.s, mj[0], mj[1], c.camera_model, z[1])
+        zhat[0] += c.robot_target_offset_m
         r, ri, token = self._noise(n, j, t, rng)
         ri_z = ri  # the camera noise of z itself, for the position fix
         r, ri = tm @ r @ tm.T, tm @ ri @ tm.T
@@ -345,7 +363,8 @@ class JointEkf:
             rs.gated.append((t, j, d2))
             return None
         fix = None
-        inv = target_position(rs.s, z, c.camera_model) if both else None
+        zc = np.array([z[0] - c.robot_target_offset_m, z[1]])
+        inv = target_position(rs.s, zc, c.camera_model) if both else None
         if inv is not None:
             pj, js, jz = inv
             c_dep, c_ind = js @ p @ js.T, jz @ ri_z @ jz.T
