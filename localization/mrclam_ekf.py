@@ -42,7 +42,15 @@ from localization.mrclam_config import MrclamEkfConfig
 from localization.mrclam_filter import JointEkf, ar1_inflation
 from localization.mrclam_track import EkfTrack, score_track
 
-__all__ = ["EkfTrack", "MrclamEkfConfig", "ar1_inflation", "initial_pose", "run_ekf", "score_track"]
+__all__ = [
+    "EkfTrack",
+    "MrclamEkfConfig",
+    "ar1_inflation",
+    "initial_pose",
+    "log_time",
+    "run_ekf",
+    "score_track",
+]
 
 ODOMETRY, LANDMARK, ROBOT = 0, 1, 2
 
@@ -54,9 +62,17 @@ def initial_pose(robot: RobotRun, t: float) -> np.ndarray:
     return robot.truth[i, 1:].astype(float)
 
 
+def log_time(t: np.ndarray) -> np.ndarray:
+    """Data set seconds as a log's stamps give them back: read to the microsecond in
+    integer ns (``hilnav import mrclam``), times 1e-9, so that the batch and the replay
+    service see the very same floats (and tie the same way)."""
+    return (np.round(np.asarray(t, float) * 1e6).astype(np.int64) * 1000) * 1e-9
+
+
 def _events(run: MrclamRun, robots: list[int]) -> np.ndarray:
     """Rows (time, kind, robot, seq, a, b, c) in the order of an imported log: kind
-    ODOMETRY (a = v, b = w), LANDMARK or ROBOT (a = subject, b = range, c = bearing)."""
+    ODOMETRY (a = v, b = w), LANDMARK or ROBOT (a = subject, b = range, c = bearing);
+    times as :func:`log_time` gives them."""
     rows = []
     for n in robots:
         o = run.robots[n].odometry
@@ -66,6 +82,7 @@ def _events(run: MrclamRun, robots: list[int]) -> np.ndarray:
         kind = np.where(np.isin(m[:, 1], list(run.landmarks)), LANDMARK, ROBOT)
         rows.append(np.column_stack([m[:, 0], kind, kind * 0 + n, np.arange(len(m)), m[:, 1:]]))
     ev = np.concatenate(rows)
+    ev[:, 0] = log_time(ev[:, 0])
     return ev[np.lexsort((ev[:, 3], ev[:, 2], ev[:, 1], ev[:, 0]))]
 
 
@@ -107,7 +124,7 @@ def run_ekf(
     init_cov = np.diag(np.square(np.asarray(cfg.init_sigma, float)))
     for n in ids:
         f = shared if shared is not None else JointEkf(cfg, run.landmarks)
-        t0 = float(run.robots[n].odometry[0, 0])
+        t0 = float(log_time(run.robots[n].odometry[:1, 0])[0])
         f.add_robot(n, t0, initial_pose(run.robots[n], t0), init_cov)
         filters[n] = f
     both = cfg.peer_update == "both"

@@ -338,10 +338,11 @@ class JointEkf:
         (when ``both``), or None."""
         if self.correlated:
             raise ValueError("robot_split is for a filter of one robot")
-        rs, c = self.to(n, t), self.cfg
         if peer is None:
-            rs.counts["robot_no_estimate"] += 1
+            self.process_to(n, t)
+            self.r[n].counts["robot_no_estimate"] += 1
             return None
+        rs, c = self.to(n, t), self.cfg
         tj, mj, cj = peer
         rng = math.hypot(mj[0] - rs.s[0], mj[1] - rs.s[1])
         if rng < 1e-6:
