@@ -60,7 +60,8 @@ def frame_factor(k: int, rho: np.ndarray) -> np.ndarray:
     if k <= 1:
         return np.ones_like(rho)
     info = k / (1.0 + (k - 1) * rho) - (k - 1) / (1.0 + (k - 2) * rho)
-    return 1.0 / info
+    with np.errstate(divide="ignore"):
+        return 1.0 / info  # inf at rho = 1: the k-th adds nothing
 
 
 @dataclass(frozen=True)
