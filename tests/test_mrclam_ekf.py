@@ -23,6 +23,7 @@ from localization.covariance_intersection import (
 )
 from localization.ekf import BoxTrack, integrity_counts
 from localization.mrclam import MrclamRun, RobotRun, load_mrclam
+from localization.mrclam_camera import camera_measurement, target_position
 from localization.mrclam_ekf import (
     EkfTrack,
     MrclamEkfConfig,
@@ -30,7 +31,6 @@ from localization.mrclam_ekf import (
     run_ekf,
     score_track,
 )
-from localization.mrclam_camera import camera_measurement, target_position
 from localization.mrclam_filter import JointEkf, frame_factor
 from localization.mrclam_motion import NX, biased_motion, velocity_motion
 from numerics.motion import motion
@@ -102,10 +102,10 @@ def test_camera_model_jacobians_match_finite_differences(model, measured_bearing
         psi_m = rng.uniform(-0.6, 0.6) if measured_bearing else None
         z, hs, hm, t = camera_measurement(x, *m, model, psi_m)
         assert hs.shape == (2, NX) and hm.shape == (2, 2)
-        ns = numeric_jacobian(lambda y, m=m: camera_measurement(y, *m, model, psi_m)[0], x,
-                              angular_out=(1,))  # fmt: skip
-        nm = numeric_jacobian(lambda p, x=x: camera_measurement(x, *p, model, psi_m)[0], m,
-                              angular_out=(1,))  # fmt: skip
+        ns = numeric_jacobian(lambda y, m=m, q=psi_m: camera_measurement(y, *m, model, q)[0],
+                              x, angular_out=(1,))  # fmt: skip
+        nm = numeric_jacobian(lambda p, x=x, q=psi_m: camera_measurement(x, *p, model, q)[0],
+                              m, angular_out=(1,))  # fmt: skip
         np.testing.assert_allclose(hs, ns, atol=1e-6)
         np.testing.assert_allclose(hm, nm, atol=1e-6)
         if measured_bearing:  # T[0, 1] = -d rho / d psi at psi_m
@@ -141,8 +141,8 @@ def test_camera_reports_the_depth_and_its_inverse_finds_the_target():
                 continue
             p, js, jz = inv
             np.testing.assert_allclose(p, m, atol=1e-9)
-            nj = numeric_jacobian(lambda y, z=z: target_position(y, z, model)[0], x)
-            nz = numeric_jacobian(lambda q, x=x: target_position(x, q, model)[0], z)
+            nj = numeric_jacobian(lambda y, z=z, md=model: target_position(y, z, md)[0], x)
+            nz = numeric_jacobian(lambda q, x=x, md=model: target_position(x, q, md)[0], z)
             np.testing.assert_allclose(js, nj, atol=1e-5)
             np.testing.assert_allclose(jz, nz, atol=1e-5)
     assert target_position(np.zeros(NX), np.array([0.01, 0.0]) - [0.02, 0.0]) is None
