@@ -54,6 +54,9 @@ class MrclamEkfConfig:
     #: Gauss-Markov states u, v with these stationary sigmas and correlation times.
     camera_common_sigma: tuple[float, float] = (0.0033, 0.0054)
     camera_common_tau_s: tuple[float, float] = (15.0, 12.0)
+    #: "measured": the range's factor g cos(psi) at the measured bearing (the range
+    #: predicted does not hinge on the heading); "predicted": at the predicted bearing.
+    range_factor_bearing: str = "measured"
     #: Robots' barcode tubes read this much farther than the landmarks' (m).
     robot_target_offset_m: float = 0.025
     #: Range sigma^2 = range_sigma_m^2 + (range_sigma_rel r)^2 + (range_sigma_quad r^2)^2;
@@ -113,6 +116,7 @@ class MrclamEkfConfig:
             "peer_update": ("observer", "both"),
             "cooperation": COOPERATION,
             "camera_model": MODELS,
+            "range_factor_bearing": ("measured", "predicted"),
         }
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:

@@ -264,6 +264,10 @@ class JointEkf:
             (key, (t, 0), (n, -1), (frame_t, k)),
         )
 
+    def _psi(self, z: np.ndarray) -> float | None:
+        """The bearing at which the range's factor is taken (None: the predicted)."""
+        return float(z[1]) if self.cfg.range_factor_bearing == "measured" else None
+
     def _used(self, token) -> None:
         self.last[token[0]] = token[1]
         self.last[token[2]] = token[3]
@@ -300,7 +304,7 @@ class JointEkf:
         if math.hypot(mark[0] - rs.s[0], mark[1] - rs.s[1]) < 1e-6:
             rs.counts["landmark_on_robot"] += 1
             return
-        zhat, hs, hm, tm = camera_measurement(rs.s, mark[0], mark[1], c.camera_model, z[1])
+        zhat, hs, hm, tm = camera_measurement(rs.s, mark[0], mark[1], c.camera_model, self._psi(z))
         r, ri, token = self._noise(n, subj, t, math.hypot(mark[0] - rs.s[0], mark[1] - rs.s[1]))
         r, ri = tm @ r @ tm.T, tm @ ri @ tm.T
         rm = hm @ np.diag([mark[2] ** 2, mark[3] ** 2]) @ hm.T  # the surveyed position
@@ -317,7 +321,9 @@ class JointEkf:
         if rng < 1e-6:
             rs.counts["robot_on_robot"] += 1
             return
-        zhat, hs, hm, tm = camera_measurement(rs.s, rj.s[0], rj.s[1], self.cfg.camera_model, z[1])
+        zhat, hs, hm, tm = camera_measurement(
+            rs.s, rj.s[0], rj.s[1], self.cfg.camera_model, self._psi(z)
+        )
         zhat[0] += self.cfg.robot_target_offset_m
         hj = np.zeros((2, NX))
         hj[:, :2] = hm
@@ -350,7 +356,7 @@ class JointEkf:
             rs.counts["robot_on_robot"] += 1
             return None
         cpos = cj[:2, :2] + np.eye(2) * (c.peer_speed_mps * (t - tj)) ** 2
-        zhat, hs, hm, tm = camera_measurement(rs.s, mj[0], mj[1], c.camera_model, z[1])
+        zhat, hs, hm, tm = camera_measurement(rs.s, mj[0], mj[1], c.camera_model, self._psi(z))
         zhat[0] += c.robot_target_offset_m
         r, ri, token = self._noise(n, j, t, rng)
         ri_z = ri  # the camera noise of z itself, for the position fix
