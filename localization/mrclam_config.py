@@ -31,7 +31,7 @@ class MrclamEkfConfig:
     #: robot driving straight does not drift; a turning one's error grows with the
     #: angle turned).
     w_noise_time: float = 3e-5
-    w_noise_turn: float = 0.009
+    w_noise_turn: float = 0.01
     #: Stationary sigma of the speed scale error k and of the turn-rate scale error kw,
     #: and their correlation time (Gauss-Markov states; 0 sigmas switch them off).
     speed_scale_sigma: float = 0.031
@@ -52,8 +52,8 @@ class MrclamEkfConfig:
     camera_drift_s: float = 3600.0
     #: The camera's errors common to every target it sees (range relative, bearing rad):
     #: Gauss-Markov states u, v with these stationary sigmas and correlation times.
-    camera_common_sigma: tuple[float, float] = (0.0033, 0.0054)
-    camera_common_tau_s: tuple[float, float] = (15.0, 12.0)
+    camera_common_sigma: tuple[float, float] = (0.0027, 0.0067)
+    camera_common_tau_s: tuple[float, float] = (15.0, 14.0)
     #: "measured": the range's factor g cos(psi) at the measured bearing (the range
     #: predicted does not hinge on the heading); "predicted": at the predicted bearing.
     range_factor_bearing: str = "measured"
@@ -63,18 +63,18 @@ class MrclamEkfConfig:
     #: bearing sigma^2 = bearing_sigma_rad^2 + (bearing_sigma_lateral_m / r)^2, r the
     #: predicted range (so that a wrong range cannot widen its own gate): the errors
     #: left by the camera model, of which the common part (above) is in the state.
-    range_sigma_m: float = 0.02
+    range_sigma_m: float = 0.017
     range_sigma_rel: float = 0.0
-    range_sigma_quad: float = 0.002
+    range_sigma_quad: float = 0.0014
     bearing_sigma_rad: float = 0.0095
     bearing_sigma_lateral_m: float = 0.024
     #: Of those variances (range, bearing): the white part, and the part correlated in
     #: time for one target (the rest is the common part): the latter is inflated by
     #: the AR(1) factor of the time since the target's previous measurement used, with
     #: the integral time scales error_correlation_s of its autocorrelation.
-    error_white_fraction: tuple[float, float] = (0.53, 0.52)
-    error_target_fraction: tuple[float, float] = (0.33, 0.24)
-    error_correlation_s: tuple[float, float] = (20.0, 12.0)
+    error_white_fraction: tuple[float, float] = (0.55, 0.46)
+    error_target_fraction: tuple[float, float] = (0.31, 0.25)
+    error_correlation_s: tuple[float, float] = (15.0, 11.0)
     #: "subject": the correlated part is per target; "robot": one process per robot.
     correlation_scope: str = "robot"
     #: Measurements of one robot at most frame_gap_s after the first of a camera frame
@@ -83,7 +83,7 @@ class MrclamEkfConfig:
     #: variance multiplied by 1 / (k / (1 + (k - 1) rho) - (k - 1) / (1 + (k - 2) rho)),
     #: so that k of them carry the information of the mean of k equicorrelated ones.
     frame_gap_s: float = 0.01
-    frame_correlation: tuple[float, float] = (0.22, 0.49)
+    frame_correlation: tuple[float, float] = (0.21, 0.58)
     #: Chi-square gate probability (2 dof) for landmark and robot measurements.
     gate_probability: float = 0.999
     #: Robot-to-robot measurements: "joint" (one filter over every robot, the
