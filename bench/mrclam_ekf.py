@@ -63,29 +63,24 @@ MODES = {"joint": "joint", "split_ci": "split_ci", "ci": "ci", "single": "none"}
 
 def ablations(cfg: MrclamEkfConfig) -> dict[str, MrclamEkfConfig]:
     """Each default undone alone (docs/algorithms.md says why each is what it is)."""
+    no_camera_states = {
+        "camera_scale_sigma": 0.0,
+        "camera_offset_sigma_m": 0.0,
+        "camera_bearing_sigma_rad": 0.0,
+        "camera_slope_sigma": 0.0,
+        "camera_distortion_sigma": 0.0,
+        "camera_common_sigma": (0.0, 0.0),
+    }
     return {
         "range_model_no_camera_states": replace(
             cfg,
             camera_model="range",
             range_sigma_rel=0.095 / 1.96,
             range_sigma_quad=0.0,
-            camera_scale_sigma=0.0,
-            camera_offset_sigma_m=0.0,
-            camera_bearing_sigma_rad=0.0,
-            camera_slope_sigma=0.0,
-            camera_distortion_sigma=0.0,
-            camera_common_sigma=(0.0, 0.0),
             robot_target_offset_m=0.0,
+            **no_camera_states,
         ),
-        "no_camera_states": replace(
-            cfg,
-            camera_scale_sigma=0.0,
-            camera_offset_sigma_m=0.0,
-            camera_bearing_sigma_rad=0.0,
-            camera_slope_sigma=0.0,
-            camera_distortion_sigma=0.0,
-            camera_common_sigma=(0.0, 0.0),
-        ),
+        "no_camera_states": replace(cfg, **no_camera_states),
         "range_factor_at_predicted_bearing": replace(cfg, range_factor_bearing="predicted"),
         "single_range_factor_at_predicted_bearing": replace(
             cfg, range_factor_bearing="predicted", cooperation="none"
