@@ -42,6 +42,8 @@ from numerics.angles import wrap_angle
 
 #: A published estimate: (time, mean (x, y, theta), covariance 3 x 3).
 Estimate = tuple[float, np.ndarray, np.ndarray]
+#: A robot's name in a filter: the batch's subject numbers, the replay's "r<n>".
+RobotId = int | str
 
 
 def ar1_inflation(dt: float, tau: float) -> float:
@@ -65,14 +67,14 @@ def frame_factor(k: int, rho: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class PeerFix:
+class PositionFix:
     """Robot ``observer`` saw robot ``robot`` at ``p`` (x, y) at time ``t``: from the
     observer's prior estimate (covariance part ``c_dep``, of unknown correlation with the
     robot's own estimate) and its measurement (``c_ind``, the camera noise: independent)."""
 
     t: float
-    robot: int
-    observer: int
+    robot: RobotId
+    observer: RobotId
     p: np.ndarray
     c_dep: np.ndarray
     c_ind: np.ndarray
@@ -83,7 +85,7 @@ class RobotState:
     """One robot in a :class:`JointEkf`: its state at time ``t``, held and queued
     commands, the grid of its track, its recorded rows and counts."""
 
-    n: int
+    n: RobotId
     s: np.ndarray
     t: float
     t0: float
@@ -103,13 +105,13 @@ class JointEkf:
 
     def __init__(self, cfg: MrclamEkfConfig, landmarks: dict[int, tuple]) -> None:
         self.cfg, self.marks, self.gate = cfg, dict(landmarks), cfg.gate
-        self.r: dict[int, RobotState] = {}
-        self.at: dict[int, int] = {}  # robot -> offset of its block in P
+        self.r: dict[RobotId, RobotState] = {}
+        self.at: dict[RobotId, int] = {}  # robot -> offset of its block in P
         self.P = np.zeros((0, 0))
         self.correlated = False
         # (robot, subject or 0): (time of the last measurement used, 0);
         # (robot, -1): (time of its current camera frame, measurements used in it)
-        self.last: dict[tuple[int, int], tuple[float, int]] = {}
+        self.last: dict[tuple[RobotId, RobotId], tuple[float, int]] = {}
         self.rho = np.asarray(cfg.frame_correlation, float)
         c = cfg
         self.q_cam = np.array(
@@ -125,7 +127,7 @@ class JointEkf:
         self.white = np.asarray(c.error_white_fraction, float)
         self.target = np.asarray(c.error_target_fraction, float)
 
-    def add_robot(self, n: int, t0: float, pose: np.ndarray, cov3: np.ndarray) -> None:
+    def add_robot(self, n: RobotId, t0: float, pose: np.ndarray, cov3: np.ndarray) -> None:
         """Robot n from time t0 at ``pose`` with covariance ``cov3``; its biases and
         camera states at 0 with their prior sigmas."""
         c = self.cfg
@@ -152,15 +154,15 @@ class JointEkf:
         self.r[n] = RobotState(n, s, t0, t0)
         self._grid(n, t0)
 
-    def _b(self, n: int) -> slice:
+    def _b(self, n: RobotId) -> slice:
         return slice(self.at[n], self.at[n] + NX)
 
     # ------------------------------------------------------------------ time
-    def command(self, n: int, stamp: float, v: float, w: float) -> None:
+    def command(self, n: RobotId, stamp: float, v: float, w: float) -> None:
         self.r[n].counts["odometry"] += 1
         self.r[n].queue.append((stamp + self.cfg.command_lag_s, v, w))
 
-    def process_to(self, n: int, t: float) -> None:
+    def process_to(self, n: RobotId, t: float) -> None:
         """Apply robot n's commands due by ``t`` and record its grid rows up to ``t``
         (the state itself stays at its last grid row or update)."""
         rs = self.r[n]
@@ -172,21 +174,21 @@ class JointEkf:
                 rs.v, rs.w = v, w
         self._grid(n, t)
 
-    def _grid(self, n: int, t: float) -> None:
+    def _grid(self, n: RobotId, t: float) -> None:
         rs, period = self.r[n], self.cfg.output_period_s
         while (tg := rs.t0 + rs.next_grid * period) <= t:
             self._predict(n, tg)
             self._record(n, True)
             rs.next_grid += 1
 
-    def _record(self, n: int, grid: bool) -> None:
+    def _record(self, n: RobotId, grid: bool) -> None:
         rs, b = self.r[n], self._b(n)
         row = (rs.t, rs.s[:3].copy(), self.P[b, b][:3, :3].copy(), grid)
         rs.rows.append(row)
         if grid:
             rs.last_grid = row[:3]
 
-    def _predict(self, n: int, t: float) -> None:
+    def _predict(self, n: RobotId, t: float) -> None:
         """Integrate the held command from the robot's time to ``t``: P' = F P F^T +
         G Q G^T + Q_bias + Q_camera, Q = diag(q_v, q_w) / dt the white velocity noise of
         intensity q_v = (v0 + kv |v|)^2 window, q_w = w_noise_time + w_noise_turn |w|
@@ -227,14 +229,14 @@ class JointEkf:
         for n, d in zip(self.r, diag, strict=True):
             self.P[self._b(n), self._b(n)] = d
 
-    def to(self, n: int, t: float) -> RobotState:
+    def to(self, n: RobotId, t: float) -> RobotState:
         """Robot n processed and predicted to ``t``."""
         self.process_to(n, t)
         self._predict(n, t)
         return self.r[n]
 
     # ------------------------------------------------------------------ noise
-    def _noise(self, n: int, subj: int, t: float, r_hat: float):
+    def _noise(self, n: RobotId, subj: RobotId, t: float, r_hat: float):
         """(R, R inflated, token for _used) of robot n's measurement at t: the camera
         sigmas at the predicted range without the common part (in the state), R = its
         white and per-target parts; inflated: the white part by the frame factor of the
@@ -273,7 +275,7 @@ class JointEkf:
         self.last[token[2]] = token[3]
 
     # ------------------------------------------------------------------ updates
-    def _kalman(self, hs: dict[int, np.ndarray], nu, r_gate, r_upd, n, subj, t, kind) -> bool:
+    def _kalman(self, hs: dict[RobotId, np.ndarray], nu, r_gate, r_upd, n, subj, t, kind) -> bool:
         """Gate and update the robots of ``hs`` (robot -> 2 x NX Jacobian), and with them
         every robot correlated with them; True when accepted."""
         ids = list(self.r) if self.correlated else list(hs)
@@ -298,7 +300,7 @@ class JointEkf:
             self.correlated = True
         return True
 
-    def landmark(self, n: int, t: float, subj: int, z: np.ndarray) -> None:
+    def landmark(self, n: RobotId, t: float, subj: int, z: np.ndarray) -> None:
         """Robot n's range-bearing ``z`` to landmark ``subj`` at ``t``."""
         rs, mark, c = self.to(n, t), self.marks[subj], self.cfg
         if math.hypot(mark[0] - rs.s[0], mark[1] - rs.s[1]) < 1e-6:
@@ -314,7 +316,7 @@ class JointEkf:
             rs.counts["landmark_accepted"] += 1
             self._record(n, False)
 
-    def robot_joint(self, n: int, t: float, j: int, z: np.ndarray) -> None:
+    def robot_joint(self, n: RobotId, t: float, j: RobotId, z: np.ndarray) -> None:
         """Robot n's range-bearing ``z`` to robot j at ``t``, one update of both."""
         rs, rj = self.to(n, t), self.to(j, t)
         rng = math.hypot(rj.s[0] - rs.s[0], rj.s[1] - rs.s[1])
@@ -338,8 +340,8 @@ class JointEkf:
             self._record(j, False)
 
     def robot_split(
-        self, n: int, t: float, j: int, z: np.ndarray, peer: Estimate | None, both: bool
-    ) -> PeerFix | None:
+        self, n: RobotId, t: float, j: RobotId, z: np.ndarray, peer: Estimate | None, both: bool
+    ) -> PositionFix | None:
         """Robot n's range-bearing ``z`` to robot j at ``t``, fused with j's published
         estimate ``peer`` by split CI ("ci": CI); the position fix of j from n's prior
         (when ``both``), or None."""
@@ -378,7 +380,7 @@ class JointEkf:
             c_dep, c_ind = js @ p @ js.T, jz @ ri_z @ jz.T
             if c.cooperation == "ci":
                 c_dep, c_ind = c_dep + c_ind, np.zeros((2, 2))
-            fix = PeerFix(t, j, n, pj, c_dep, c_ind)
+            fix = PositionFix(t, j, n, pj, c_dep, c_ind)
         r_dep, r_ind = (a_peer, ri) if c.cooperation == "split_ci" else (a_peer + ri, 0 * ri)
         w = split_ci_weight(p, hs, r_dep, r_ind, c.ci_criterion, block=3)
         rs.s, self.P[b, b] = split_ci_update(rs.s, p, nu, hs, r_dep, r_ind, w)
@@ -388,7 +390,7 @@ class JointEkf:
             self._record(n, False)
         return fix
 
-    def fix_update(self, n: int, fix: PeerFix) -> None:
+    def fix_update(self, n: RobotId, fix: PositionFix) -> None:
         """Robot n seen by another robot: its position fix, fused by split CI."""
         rs, c = self.to(n, fix.t), self.cfg
         b = self._b(n)

@@ -30,9 +30,16 @@ from typing import Any
 import numpy as np
 
 from localization.mrclam_config import MrclamEkfConfig
-from localization.mrclam_filter import Estimate, JointEkf, PeerFix
-from msgs import LandmarkMap, Pose2D, PoseEstimate, RangeBearing, VelocityOdometry, wrap_angle
-from msgs import PeerFix as PeerFixMsg
+from localization.mrclam_filter import Estimate, JointEkf, PositionFix
+from msgs import (
+    LandmarkMap,
+    PeerFix,
+    Pose2D,
+    PoseEstimate,
+    RangeBearing,
+    VelocityOdometry,
+    wrap_angle,
+)
 
 NS = 1e-9
 
@@ -123,9 +130,9 @@ class MrclamEkfService:
             out.append(("peer_fix", self._fix_msg(fix)))
         return out
 
-    def _fix_msg(self, fix: PeerFix) -> PeerFixMsg:
+    def _fix_msg(self, fix: PositionFix) -> PeerFix:
         cd, ci = fix.c_dep, fix.c_ind
-        return PeerFixMsg(
+        return PeerFix(
             round(fix.t / NS),
             str(fix.robot),
             str(fix.observer),
@@ -141,12 +148,12 @@ class MrclamEkfService:
             cov = np.array(msg.covariance, float).reshape(3, 3)
             mean = np.array([msg.pose.x, msg.pose.y, msg.pose.theta])
             self.peers[robot] = (msg.stamp_ns * NS, mean, cov)
-        elif topic == "peer_fix" and isinstance(msg, PeerFixMsg) and msg.robot == self.robot:
+        elif topic == "peer_fix" and isinstance(msg, PeerFix) and msg.robot == self.robot:
             if self.f is None or msg.stamp_ns * NS < self.f.r[self.robot].t0:
                 self.counts["seen_before_start"] += 1
                 return []
             p = np.array([msg.x_m, msg.y_m])
-            fix = PeerFix(
+            fix = PositionFix(
                 msg.stamp_ns * NS,
                 self.robot,
                 msg.observer,
