@@ -1,20 +1,28 @@
 """Benchmark: the MRCLAM EKF (localization/mrclam_ekf.py) on a real MRCLAM run directory.
 
-Every robot of the run over the whole run, cooperative (robot-to-robot range-bearing
-fused by covariance intersection) and single (landmarks only), default configuration
-(derived in docs/algorithms.md, not fitted to any run). Scored at the track's instants
-where the motion-capture truth exists (``truth_at``'s gap mask); the commands are
-shifted by the configured lag, so the track is on the truth's clock:
+Every robot of the run over the whole run, default configuration (derived in
+docs/algorithms.md from error statistics, not fitted to any score), side by side in one
+run:
+
+- ``joint``: the default, one filter over all the robots with their cross-covariances
+  (the centralized equivalent);
+- ``split_ci``: one filter per robot fed the others' published estimates, split
+  covariance intersection (what ``hilnav replay`` runs, robot by robot);
+- ``ci``: the same with covariance intersection (everything of unknown correlation);
+- ``single``: landmarks only.
+
+Scored at the track's grid instants (every 0.05 s) where the motion-capture truth
+exists (``truth_at``'s gap mask); the commands are shifted by the configured lag, so the
+track is on the truth's clock:
 
 - position RMSE (m) per robot and pooled over all scored instants of all robots;
 - 3-sigma containment: fraction of instants with x, y and theta all within 3 sigma;
-- the measurement counts (accepted, gated, CI with no gain) summed over the robots;
-- realtime_factor: run duration / wall time of the cooperative pass (all robots).
+- the measurement counts (accepted, gated, no gain) summed over the robots;
+- realtime_factor: run duration / wall time of the joint pass (all robots, one core).
 
-``--ablations`` adds single-change variants of the cooperative filter (no command lag,
-no AR(1) inflation, no bias states (white noise calibrated at 10 s), white noise only
-calibrated at the README's 0.2 s window, AR(1) time 5 s, CI by trace, observer-only
-peer update), so the effect of each default can be seen side by side.
+``--ablations`` adds single-change variants of the joint filter (each default undone
+alone; one of them on the single-robot filter, where it matters most), so the effect of
+each can be seen side by side.
 
 The LAST line is a JSON object with those figures.
 
@@ -47,12 +55,57 @@ COUNTS = (
     "robot_no_gain",
     "robot_gated",
     "seen_accepted",
+    "seen_no_gain",
+    "seen_gated",
 )
+MODES = {"joint": "joint", "split_ci": "split_ci", "ci": "ci", "single": "none"}
 
 
-def evaluate(run, robots, cooperative: bool, cfg: MrclamEkfConfig) -> dict:
+def ablations(cfg: MrclamEkfConfig) -> dict[str, MrclamEkfConfig]:
+    """Each default undone alone (docs/algorithms.md says why each is what it is)."""
+    no_camera_states = {
+        "camera_scale_sigma": 0.0,
+        "camera_offset_sigma_m": 0.0,
+        "camera_bearing_sigma_rad": 0.0,
+        "camera_slope_sigma": 0.0,
+        "camera_distortion_sigma": 0.0,
+        "camera_common_sigma": (0.0, 0.0),
+    }
+    return {
+        "range_model_no_camera_states": replace(
+            cfg,
+            camera_model="range",
+            range_sigma_rel=0.095 / 1.96,
+            range_sigma_quad=0.0,
+            robot_target_offset_m=0.0,
+            **no_camera_states,
+        ),
+        "no_camera_states": replace(cfg, **no_camera_states),
+        "range_factor_at_predicted_bearing": replace(cfg, range_factor_bearing="predicted"),
+        "single_range_factor_at_predicted_bearing": replace(
+            cfg, range_factor_bearing="predicted", cooperation="none"
+        ),
+        "no_ar1_inflation": replace(cfg, error_correlation_s=(0.0, 0.0)),
+        "ar1_per_target": replace(cfg, correlation_scope="subject"),
+        "one_ar1_on_all_error_8s": replace(
+            cfg,
+            error_white_fraction=(0.0, 0.0),
+            error_target_fraction=(1.0, 1.0),
+            error_correlation_s=(8.0, 8.0),
+            camera_common_sigma=(0.0, 0.0),
+        ),
+        "heading_noise_in_time": replace(
+            cfg, w_noise_time=8.9e-4, w_noise_turn=0.0, turn_scale_sigma=0.0
+        ),
+        "no_command_lag": replace(cfg, command_lag_s=0.0),
+        "no_robot_target_offset": replace(cfg, robot_target_offset_m=0.0),
+        "split_ci_observer_only": replace(cfg, cooperation="split_ci", peer_update="observer"),
+    }
+
+
+def evaluate(run, robots, cfg: MrclamEkfConfig) -> dict:
     t0 = time.perf_counter()
-    tracks = run_ekf(run, robots, cooperative, cfg)
+    tracks = run_ekf(run, robots, config=cfg)
     wall = time.perf_counter() - t0
     per, counts = {}, Counter()
     sq = inside = n = 0.0
@@ -74,6 +127,18 @@ def evaluate(run, robots, cooperative: bool, cfg: MrclamEkfConfig) -> dict:
     }
 
 
+def _short(res: dict) -> dict:
+    return {
+        "rmse_m": round(res["rmse_m"], 4),
+        "containment": round(res["containment"], 4),
+        "containment_min": round(res["containment_min"], 4),
+        "rmse_m_per_robot": {k: round(s["rmse_m"], 4) for k, s in res["per_robot"].items()},
+        "containment_per_robot": {
+            k: round(s["containment"], 4) for k, s in res["per_robot"].items()
+        },
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("directory", nargs="?", default=str(DEFAULT_DIR))
@@ -84,77 +149,45 @@ def main() -> None:
     robots = sorted(run.robots) if a.robots is None else a.robots
     duration = run.end_s - run.start_s
     cfg = MrclamEkfConfig()
-    coop = evaluate(run, robots, True, cfg)
-    single = evaluate(run, robots, False, cfg)
+    res = {name: evaluate(run, robots, replace(cfg, cooperation=m)) for name, m in MODES.items()}
     print(f"{Path(a.directory).name}: {len(robots)} robots, {duration:.0f} s")
-    print(f"{'robot':>5} {'mode':>6} {'RMSE m':>7} {'head rad':>8} {'3sig':>6} {'3sig xy':>7}")
+    print(f"{'robot':>5} " + " ".join(f"{m + ' RMSE/3sig':>20}" for m in MODES))
     for k in robots:
-        for name, res in (("coop", coop), ("single", single)):
-            s = res["per_robot"][k]
-            print(
-                f"{k:>5} {name:>6} {s['rmse_m']:7.3f} {s['heading_rmse_rad']:8.3f} "
-                f"{s['containment']:6.3f} {s['containment_xy']:7.3f}"
-            )
-    for name, res in (("coop", coop), ("single", single)):
-        print(
-            f"{'all':>5} {name:>6} {res['rmse_m']:7.3f} {'':8} {res['containment']:6.3f}"
-            f"   counts {res['counts']}  wall {res['wall_s']:.1f} s"
-        )
-    ablations = {}
+        cells = [f"{r['per_robot'][k]['rmse_m']:7.3f} / {r['per_robot'][k]['containment']:5.3f}"
+                 for r in res.values()]  # fmt: skip
+        print(f"{k:>5} " + " ".join(f"{c:>20}" for c in cells))
+    cells = [f"{r['rmse_m']:7.3f} / {r['containment']:5.3f}" for r in res.values()]
+    print(f"{'all':>5} " + " ".join(f"{c:>20}" for c in cells))
+    for name, r in res.items():
+        print(f"  {name}: counts {r['counts']}  wall {r['wall_s']:.1f} s")
+    abl = {}
     if a.ablations:
-        variants = {
-            "no_command_lag": replace(cfg, command_lag_s=0.0),
-            "no_ar1_inflation": replace(cfg, error_correlation_s=0.0),
-            "no_bias_states": replace(
-                cfg,
-                speed_scale_sigma=0.0,
-                turn_bias_sigma_radps=0.0,
-                v_sigma_rel=0.04,
-                w_sigma_radps=0.0114,
-            ),
-            "white_noise_at_0.2s_readme": replace(
-                cfg,
-                speed_scale_sigma=0.0,
-                turn_bias_sigma_radps=0.0,
-                noise_window_s=0.2,
-                v_sigma_mps=0.010,
-                v_sigma_rel=0.09,
-                w_sigma_radps=0.12 / 1.96,
-            ),
-            "ar1_tau_5s": replace(cfg, error_correlation_s=5.0),
-            "ci_trace": replace(cfg, ci_criterion="trace"),
-            "peer_update_observer": replace(cfg, peer_update="observer"),
-        }
-        print(f"{'variant (cooperative)':>26} {'RMSE m':>7} {'3sig':>6} {'3sig min':>8}")
-        for name, v in variants.items():
-            res = evaluate(run, robots, True, v)
-            ablations[name] = {
-                "ekf_rmse_m": round(res["rmse_m"], 4),
-                "ekf_containment": round(res["containment"], 4),
-                "ekf_containment_min": round(res["containment_min"], 4),
-            }
+        print(f"{'variant (joint, one change)':>36} {'RMSE m':>7} {'3sig':>6} {'3sig min':>8}")
+        for name, v in ablations(cfg).items():
+            r = evaluate(run, robots, v)
+            abl[name] = _short(r)
             print(
-                f"{name:>26} {res['rmse_m']:7.3f} {res['containment']:6.3f} "
-                f"{res['containment_min']:8.3f}"
+                f"{name:>36} {r['rmse_m']:7.3f} {r['containment']:6.3f} {r['containment_min']:8.3f}"
             )
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else []
+    joint = res["joint"]
     out = {
         "directory": Path(a.directory).name,
         "robots": robots,
         "duration_s": round(duration, 1),
-        "ekf_rmse_m": round(coop["rmse_m"], 4),
-        "ekf_rmse_m_per_robot": {k: round(s["rmse_m"], 4) for k, s in coop["per_robot"].items()},
-        "ekf_containment": round(coop["containment"], 4),
-        "ekf_containment_per_robot": {
-            k: round(s["containment"], 4) for k, s in coop["per_robot"].items()
-        },
-        "ekf_containment_min": round(coop["containment_min"], 4),
-        "ekf_single_rmse_m": round(single["rmse_m"], 4),
-        "ekf_single_containment": round(single["containment"], 4),
-        "ekf_single_containment_min": round(single["containment_min"], 4),
-        "counts": coop["counts"],
-        "realtime_factor": round(duration / coop["wall_s"], 1),
-        "ablations": ablations,
+        "cooperation": cfg.cooperation,
+        "ekf_rmse_m": round(joint["rmse_m"], 4),
+        "ekf_rmse_m_per_robot": _short(joint)["rmse_m_per_robot"],
+        "ekf_containment": round(joint["containment"], 4),
+        "ekf_containment_per_robot": _short(joint)["containment_per_robot"],
+        "ekf_containment_min": round(joint["containment_min"], 4),
+        "ekf_single_rmse_m": round(res["single"]["rmse_m"], 4),
+        "ekf_single_containment": round(res["single"]["containment"], 4),
+        "ekf_single_containment_min": round(res["single"]["containment_min"], 4),
+        "modes": {name: _short(r) for name, r in res.items()},
+        "counts": {name: r["counts"] for name, r in res.items()},
+        "realtime_factor": round(duration / joint["wall_s"], 1),
+        "ablations": abl,
         "loadavg": load,
     }
     print(json.dumps(out))

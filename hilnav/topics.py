@@ -34,6 +34,7 @@ from msgs import (
     LandmarkMap,
     LandmarkScan,
     OccupancyGridMsg,
+    PeerFix,
     PoseBox,
     PoseEstimate,
     RangeBearing,
@@ -74,8 +75,10 @@ _TABLE = (
     Topic("cmd_vel", VelocityCommand, "bus", "velocity command for this robot (fleet only)"),
     Topic("heading", HeadingEstimate, "services", "encoder + gyro heading (ir-grid-mapping "
           "eq. 1-4)", published=True),
-    Topic("pose", PoseEstimate, "services", "pose EKF: odometry, gyro, GPS (ekf-vs-cp eq. 1-4)",
-          published=True),
+    Topic("pose", PoseEstimate, "services", "pose EKF: odometry, gyro, GPS (ekf-vs-cp eq. 1-4); "
+          "MRCLAM replay: the MRCLAM EKF (velocity odometry, range-bearing)", published=True),
+    Topic("peer_fix", PeerFix, "services", "MRCLAM replay: a robot's position fix of another "
+          "robot it measured (its estimate + range-bearing), for that robot's EKF"),
     Topic("pose_box", PoseBox, "services", "guaranteed CP box (ekf-vs-cp eq. 5)",
           published=True, peer=True),
     Topic("map", OccupancyGridMsg, "services", "IR occupancy grid (ir-grid-mapping eq. 5-8)",

@@ -23,6 +23,22 @@ Choice of w: minimise det P+ (default) or trace P+.
   when the measurement carries too little information to beat the prior alone.
 - trace: golden-section search of trace P+(w) on [1e-3, 1]; so is either criterion
   judged on a leading block of P+ only (the pose, without nuisance states).
+
+Split covariance intersection (SCI; Julier & Uhlmann, "General decentralized data fusion
+with covariance intersection", Handbook of Multisensor Data Fusion, 2001; Li &
+Nashashibi, "Cooperative multi-vehicle localization using split covariance intersection
+filter", IEEE ITS Magazine 2013): the measurement error is e_d + e_i, e_d of unknown
+correlation with the prior error (covariance at most R_d: e.g. a peer's estimate) and
+e_i independent of both (R_i: the camera noise of this measurement). Then
+
+    P1 = P / w,    R2 = R_d / (1 - w) + R_i,    the Kalman update with (P1, R2)    (SCI)
+
+is consistent for every w in (0, 1]: the error after the update is
+(I - K H) e_x - K e_d - K e_i, and cov(a + b) <= cov(a) / w + cov(b) / (1 - w) for any
+correlation of a = (I - K H) e_x and b = -K e_d, while K e_i adds K R_i K^T; the Joseph
+form with (P1, R2) is exactly that bound. R_i = 0 is CI. Its weight minimises the
+criterion on the pose block over a grid of w refined twice (the criterion need not be
+unimodal in w); w = 1 (no update) when no w < 1 beats it.
 """
 
 from __future__ import annotations
@@ -80,6 +96,68 @@ def ci_update(
     ph, _, s_inv = ekf.innovation(pw, h, rw)
     x, p = ekf.joseph_update(x, pw, nu, h, rw, ph, s_inv)
     return x, 0.5 * (p + p.T)
+
+
+def split_ci_weight(
+    p: np.ndarray,
+    h: np.ndarray,
+    r_dep: np.ndarray,
+    r_ind: np.ndarray,
+    criterion: str = "det",
+    block: int = 3,
+) -> float:
+    """The SCI weight w in (0, 1] (1: the measurement adds nothing) minimising det or
+    trace of P+[:block, :block], on a grid of 32 weights refined twice around the best."""
+    if criterion not in ("det", "trace"):
+        raise ValueError(f"criterion must be 'det' or 'trace', got {criterion!r}")
+    pb = p[:block, :block]
+    u = p[:block] @ h.T  # (block, m)
+    a = h @ p @ h.T
+    measure = np.linalg.det if criterion == "det" else (lambda m: np.trace(m, axis1=1, axis2=2))
+
+    def crit(w: np.ndarray) -> np.ndarray:
+        s = a[None] / w[:, None, None] + r_dep[None] / (1.0 - w)[:, None, None] + r_ind[None]
+        uw = u[None] / w[:, None, None]
+        post = pb[None] / w[:, None, None] - uw @ np.linalg.solve(s, np.swapaxes(uw, 1, 2))
+        return measure(post)
+
+    f1 = float(measure(pb[None])[0])
+    grid = np.linspace(0.0, 1.0, 34)[1:-1]
+    best = math.inf
+    w = 1.0
+    for _ in range(3):
+        vals = crit(grid)
+        i = int(np.argmin(vals))
+        if vals[i] < best:
+            best, w = float(vals[i]), float(grid[i])
+        step = grid[1] - grid[0]
+        grid = np.linspace(max(w - step, 1e-4), min(w + step, 1.0 - 1e-6), 17)
+    return w if best < f1 * (1.0 - 1e-9) else 1.0
+
+
+def split_ci_update(
+    x: np.ndarray,
+    p: np.ndarray,
+    nu: np.ndarray,
+    h: np.ndarray,
+    r_dep: np.ndarray,
+    r_ind: np.ndarray,
+    w: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(x+, P+) of (SCI) with innovation ``nu``, in Joseph form; (x, P) at w = 1."""
+    if w >= 1.0:
+        return x, p
+    pw, rw = p / w, r_dep / (1.0 - w) + r_ind
+    ph, _, s_inv = ekf.innovation(pw, h, rw)
+    x, p = ekf.joseph_update(x, pw, nu, h, rw, ph, s_inv)
+    return x, 0.5 * (p + p.T)
+
+
+def split_ci_posterior(
+    p: np.ndarray, h: np.ndarray, r_dep: np.ndarray, r_ind: np.ndarray, w: float
+) -> np.ndarray:
+    """P+ of (SCI) for the weight w in (0, 1] (P itself at w = 1)."""
+    return split_ci_update(np.zeros(p.shape[0]), p, np.zeros(h.shape[0]), h, r_dep, r_ind, w)[1]
 
 
 def _golden(f) -> float:

@@ -47,3 +47,25 @@ class PoseBox:
     @property
     def area_m2(self) -> float:
         return self.x.width * self.y.width
+
+
+@dataclass(frozen=True, slots=True)
+class PeerFix:
+    """Robot ``observer`` saw robot ``robot`` at (x_m, y_m) in ``frame`` at ``stamp_ns``:
+    the observer's pose estimate combined with its range-bearing measurement of it, for
+    the robot's own filter (split covariance intersection). The 2x2 covariances (xx, xy,
+    yy, m^2) of the part that comes from the observer's estimate (``cov_estimate``: of
+    unknown correlation with the robot's own estimate) and of the part that comes from
+    the measurement noise (``cov_measurement``: independent of every estimate).
+    Decoding refuses non-finite numbers."""
+
+    FLOATS: ClassVar[str] = "finite"
+
+    stamp_ns: int
+    robot: str
+    observer: str
+    x_m: float
+    y_m: float
+    cov_estimate: tuple[float, float, float]
+    cov_measurement: tuple[float, float, float]
+    frame: str = "map"

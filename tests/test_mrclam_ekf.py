@@ -6,15 +6,24 @@ integrity counts of localization/ekf.py."""
 from __future__ import annotations
 
 import math
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numjac import numeric_jacobian
 
-from localization.covariance_intersection import ci_posterior, ci_update, ci_weight
+from localization.covariance_intersection import (
+    ci_posterior,
+    ci_update,
+    ci_weight,
+    split_ci_posterior,
+    split_ci_update,
+    split_ci_weight,
+)
 from localization.ekf import BoxTrack, integrity_counts
 from localization.mrclam import MrclamRun, RobotRun, load_mrclam
+from localization.mrclam_camera import camera_measurement, target_position
 from localization.mrclam_ekf import (
     EkfTrack,
     MrclamEkfConfig,
@@ -22,6 +31,7 @@ from localization.mrclam_ekf import (
     run_ekf,
     score_track,
 )
+from localization.mrclam_filter import JointEkf, frame_factor
 from localization.mrclam_motion import NX, biased_motion, velocity_motion
 from numerics.motion import motion
 from numerics.rangebearing import range_bearing
@@ -47,20 +57,27 @@ def test_velocity_motion_jacobians_match_finite_differences():
         np.testing.assert_allclose(g, ng, atol=1e-6)
 
 
+def _state(rng, s):
+    """A full state around the pose s: biases, camera terms and common errors."""
+    sig = [0.03, 0.05, 0.05, 0.05, 0.01, 0.03, 0.05, 0.005, 0.005]
+    return np.concatenate([s, rng.normal(0.0, sig)])
+
+
 def test_biased_motion_jacobians_match_finite_differences():
     rng = np.random.default_rng(7)
     for s in _poses(rng, 60):
-        x = np.concatenate([s, [rng.uniform(-0.1, 0.1), rng.uniform(-0.02, 0.02)]])
+        x = _state(rng, s)
         v, w = rng.uniform(-0.3, 0.3), rng.choice([0.0, 1e-7, rng.uniform(-1.0, 1.0)])
         dt, tau = rng.uniform(0.001, 1.5), rng.choice([0.0, 120.0])
-        x1, f, g = biased_motion(x, v, w, dt, tau)
+        taus = (15.0, 12.0) if tau else (0.0, 0.0)
+        x1, f, g = biased_motion(x, v, w, dt, tau, taus)
         assert x1.shape == (NX,) and f.shape == (NX, NX) and g.shape == (NX, 2)
         np.testing.assert_allclose(
-            x1[:3], motion(s, np.array([v * (1 + x[3]) * dt, (w + x[4]) * dt]), 0.5, True)
+            x1[:3], motion(s, np.array([v * (1 + x[3]) * dt, w * (1 + x[4]) * dt]), 0.5, True)
         )
-        nf = numeric_jacobian(
-            lambda y, v=v, w=w, dt=dt, tau=tau: biased_motion(y, v, w, dt, tau)[0], x
-        )
+        np.testing.assert_allclose(x1[5:10], x[5:10])  # the camera's calibration stays
+        nf = numeric_jacobian(lambda y, v=v, w=w, dt=dt, tau=tau, taus=taus: biased_motion(
+            y, v, w, dt, tau, taus)[0], x)  # fmt: skip
         ng = numeric_jacobian(
             lambda u, x=x, dt=dt, tau=tau: biased_motion(x, u[0], u[1], dt, tau)[0],
             np.array([v, w]),
@@ -68,6 +85,67 @@ def test_biased_motion_jacobians_match_finite_differences():
         np.testing.assert_allclose(f, nf, atol=1e-6)
         # G is the Jacobian in the commands of the pose rows (the noise enters there).
         np.testing.assert_allclose(g[:3], ng[:3], atol=1e-6)
+
+
+@pytest.mark.parametrize("model", ["depth", "range"])
+@pytest.mark.parametrize("measured_bearing", [False, True])
+def test_camera_model_jacobians_match_finite_differences(model, measured_bearing):
+    """d(rho, psi)/d state and d(rho, psi)/d target, with the range factor taken at the
+    predicted bearing or at a measured one (then T moves the bearing noise into the
+    range: T R T^T is the covariance of the linearised range and bearing errors)."""
+    rng = np.random.default_rng(11)
+    for s in _poses(rng, 150):
+        x = _state(rng, s)
+        m = rng.uniform(-6, 6, 2)
+        if np.hypot(*(m - s[:2])) < 0.3:
+            continue
+        psi_m = rng.uniform(-0.6, 0.6) if measured_bearing else None
+        z, hs, hm, t = camera_measurement(x, *m, model, psi_m)
+        assert hs.shape == (2, NX) and hm.shape == (2, 2)
+        ns = numeric_jacobian(lambda y, m=m, q=psi_m: camera_measurement(y, *m, model, q)[0],
+                              x, angular_out=(1,))  # fmt: skip
+        nm = numeric_jacobian(lambda p, x=x, q=psi_m: camera_measurement(x, *p, model, q)[0],
+                              m, angular_out=(1,))  # fmt: skip
+        np.testing.assert_allclose(hs, ns, atol=1e-6)
+        np.testing.assert_allclose(hm, nm, atol=1e-6)
+        if measured_bearing:  # T[0, 1] = -d rho / d psi at psi_m
+            drho = numeric_jacobian(
+                lambda q, x=x, m=m: camera_measurement(x, *m, model, q[0])[0][:1],
+                np.array([psi_m]),
+            )
+            assert abs(t[0, 1] + drho[0, 0]) < 1e-6 and t[1, 0] == 0.0
+        else:
+            assert np.array_equal(t, np.eye(2))
+
+
+def test_camera_reports_the_depth_and_its_inverse_finds_the_target():
+    """Straight ahead the depth is the range; 0.5 rad off it is r cos(0.5) (what makes
+    Dataset 6's ranges 12 % short at the edge of the image); target_position inverts
+    the model, with its Jacobians against finite differences."""
+    s = np.zeros(NX)
+    z, *_ = camera_measurement(s, 3.0, 0.0)
+    np.testing.assert_allclose(z, [3.0, 0.0])
+    z, *_ = camera_measurement(s, 3.0 * math.cos(0.5), 3.0 * math.sin(0.5))
+    np.testing.assert_allclose(z, [3.0 * math.cos(0.5), 0.5])
+    rng = np.random.default_rng(12)
+    for model in ("depth", "range"):
+        for s in _poses(rng, 100):
+            x = _state(rng, s)
+            m = rng.uniform(-6, 6, 2)
+            if np.hypot(*(m - s[:2])) < 0.3:
+                continue
+            z, *_ = camera_measurement(x, *m, model)
+            inv = target_position(x, z, model)
+            if abs(z[1]) >= 1.2 and model == "depth":
+                assert inv is None
+                continue
+            p, js, jz = inv
+            np.testing.assert_allclose(p, m, atol=1e-9)
+            nj = numeric_jacobian(lambda y, z=z, md=model: target_position(y, z, md)[0], x)
+            nz = numeric_jacobian(lambda q, x=x, md=model: target_position(x, q, md)[0], z)
+            np.testing.assert_allclose(js, nj, atol=1e-5)
+            np.testing.assert_allclose(jz, nz, atol=1e-5)
+    assert target_position(np.zeros(NX), np.array([0.01, 0.0]) - [0.02, 0.0]) is None
 
 
 def test_velocity_motion_follows_the_arc():
@@ -166,6 +244,69 @@ def test_ci_is_consistent_for_any_correlation():
         assert np.linalg.eigvalsh(ci_posterior(p, h, r, w) - true_cov).min() > -1e-9
 
 
+def _correlated(rng, p, r):
+    """A joint covariance [[P, C], [C^T, R]] with an arbitrary valid cross-covariance."""
+    lp, lr = np.linalg.cholesky(p), np.linalg.cholesky(r)
+    n, m = p.shape[0], r.shape[0]
+    q = np.linalg.qr(rng.normal(size=(n, n)))[0][:, :m] * rng.uniform(0, 1)
+    c = lp @ q @ lr.T
+    return np.block([[p, c], [c.T, r]])
+
+
+def test_split_ci_is_consistent_for_any_correlation_of_the_dependent_part():
+    """SCI with a measurement error e_d + e_i, e_d arbitrarily correlated with the prior
+    and e_i independent: the SCI covariance bounds the true error covariance of its
+    estimate, at its optimal weight and at any other; with R_i = 0 it is CI."""
+    rng = np.random.default_rng(15)
+    used = 0
+    for _ in range(200):
+        p, rd, ri = _spd(rng, 5, rng.uniform(0.1, 1)), _spd(rng, 2, 0.5), _spd(rng, 2, 0.3)
+        h = rng.normal(size=(2, 5))
+        joint = _correlated(rng, p, rd)
+        for w in (split_ci_weight(p, h, rd, ri, "det", 3), rng.uniform(0.05, 0.95)):
+            if w >= 1.0:
+                continue
+            used += 1
+            pw, rw = p / w, rd / (1 - w) + ri
+            k = pw @ h.T @ np.linalg.inv(h @ pw @ h.T + rw)
+            a = np.hstack([np.eye(5) - k @ h, k])  # x+ error: (I - K H) e_x + K e_d (+ K e_i)
+            true_cov = a @ joint @ a.T + k @ ri @ k.T
+            assert np.linalg.eigvalsh(split_ci_posterior(p, h, rd, ri, w) - true_cov).min() > -1e-9
+    assert used > 250
+    p, r, h = _spd(rng, 3), _spd(rng, 2), rng.normal(size=(2, 3))
+    w = 0.4
+    np.testing.assert_allclose(split_ci_posterior(p, h, r, 0 * r, w), ci_posterior(p, h, r, w))
+
+
+@pytest.mark.parametrize("criterion", ["det", "trace"])
+def test_split_ci_weight_is_the_optimum_on_the_pose_block(criterion):
+    rng = np.random.default_rng(16)
+    grid = np.linspace(1e-3, 1.0 - 1e-6, 1500)
+
+    def measure(m):
+        return np.linalg.det(m[:3, :3]) if criterion == "det" else np.trace(m[:3, :3])
+
+    for _ in range(20):
+        p, rd, ri = _spd(rng, 6, rng.uniform(0.05, 2)), _spd(rng, 2, 0.3), _spd(rng, 2, 0.3)
+        h = rng.normal(size=(2, 6))
+        w = split_ci_weight(p, h, rd, ri, criterion, 3)
+        best = min(measure(split_ci_posterior(p, h, rd, ri, g)) for g in grid)
+        best = min(best, measure(p))
+        assert measure(split_ci_posterior(p, h, rd, ri, w)) <= best * (1 + 1e-4) + 1e-15
+    # a measurement that knows nothing new: w = 1, the prior is kept
+    p = np.eye(3) * 1e-4
+    x, pp = split_ci_update(np.zeros(3), p, np.ones(2), np.eye(3)[:2], np.eye(2), np.eye(2), 1.0)
+    assert split_ci_weight(p, np.eye(3)[:2], np.eye(2), np.eye(2)) == 1.0
+    assert np.array_equal(x, np.zeros(3)) and pp is p
+
+
+def test_frame_factor_gives_a_frame_the_information_of_its_mean():
+    rho = np.array([0.0, 0.22, 0.49, 1.0])
+    for k in range(1, 8):
+        info = sum(1.0 / frame_factor(j, rho) for j in range(1, k + 1))
+        np.testing.assert_allclose(info, k / (1.0 + (k - 1) * rho))
+
+
 def test_ar1_inflation_matches_the_variance_of_a_correlated_mean():
     rng = np.random.default_rng(6)
     dt, tau, n = 0.2, 2.0, 4000
@@ -196,14 +337,14 @@ def dataset6():
     return load_mrclam(DATA)
 
 
-def test_real_slice_is_accurate_and_consistent(dataset6):
-    """Dataset 6, 60-180 s, robots 2, 3 and 5, cooperative: RMSE and 3-sigma containment
-    (measured 0.11 / 0.10 / 0.15 m and 100 / 100 / 80 %; without the AR(1) inflation
-    the three hold the truth 87 % of the time, with a loose gate robot 3 is 0.73 m off)."""
+@pytest.mark.parametrize("cooperation", ["joint", "split_ci"])
+def test_real_slice_is_accurate_and_consistent(dataset6, cooperation):
+    """Dataset 6, 60-180 s, robots 2, 3 and 5: RMSE and 3-sigma containment (measured
+    joint 0.064 / 0.072 / 0.059 m, split CI 0.068 / 0.082 / 0.063 m, all 100 %)."""
     run = _cut(dataset6, 60.0, 180.0)
-    tracks = run_ekf(run, robots=[2, 3, 5])
+    cfg = MrclamEkfConfig(cooperation=cooperation)
+    tracks = run_ekf(run, robots=[2, 3, 5], config=cfg)
     assert sorted(tracks) == [2, 3, 5]
-    inside = scored = 0
     for n, tr in tracks.items():
         assert isinstance(tr, EkfTrack)
         assert tr.mean.shape == (len(tr.t), 3) and tr.cov.shape == (len(tr.t), 3, 3)
@@ -211,18 +352,56 @@ def test_real_slice_is_accurate_and_consistent(dataset6):
         assert np.all(np.linalg.eigvalsh(tr.cov).min(axis=1) > 0)
         sc = score_track(tr, run.robots[n])
         assert sc["scored"] > 2000
-        assert sc["rmse_m"] < 0.2, (n, sc)
-        assert sc["containment"] >= 0.7, (n, sc)
-        inside += sc["containment"] * sc["scored"]
-        scored += sc["scored"]
-    assert inside / scored >= 0.9
+        assert sc["rmse_m"] < 0.12, (n, sc)
+        assert sc["containment"] >= 0.95, (n, sc)
     c = tracks[3].counts
     assert c["landmark_accepted"] > 500 and c["odometry"] > 9000
-    assert c["robot_accepted"] + c["robot_no_gain"] + c["robot_gated"] > 0
-    assert c["robot_not_run"] > 0  # robots 1 and 4 are seen but not run
+    assert c["robot_accepted"] > 20 and c["robot_not_run"] > 0  # robots 1 and 4: not run
     # Deterministic: the same inputs give the same tracks.
-    again = run_ekf(run, robots=[2, 3, 5])
+    again = run_ekf(run, robots=[2, 3, 5], config=cfg)
     assert all(np.array_equal(again[n].mean, tracks[n].mean) for n in tracks)
+
+
+def test_covariance_intersection_finds_little_to_fuse_and_split_ci_more(dataset6):
+    """Between robots that all see landmarks, CI (everything of unknown correlation)
+    rarely beats a robot's own prior; split CI (the camera noise independent) does."""
+    run = _cut(dataset6, 60.0, 180.0)
+    counts = {}
+    for mode in ("ci", "split_ci"):
+        tr = run_ekf(run, robots=[2, 3, 5], config=MrclamEkfConfig(cooperation=mode))
+        counts[mode] = sum((t.counts for t in tr.values()), Counter())
+    assert counts["ci"]["robot_accepted"] <= 0.1 * counts["ci"]["robot_no_gain"]
+    assert counts["split_ci"]["robot_accepted"] > 5 * max(counts["ci"]["robot_accepted"], 1)
+
+
+def test_the_joint_filter_applies_its_lazy_cross_covariances_exactly():
+    """Cross blocks are brought up to date (Phi_i P_ij Phi_j^T) only when an update needs
+    them: equal to propagating the whole joint covariance at every step."""
+    rng = np.random.default_rng(21)
+    cfg = MrclamEkfConfig()
+    f = JointEkf(cfg, {6: (3.0, 1.0, 0.01, 0.01)})
+    for n in (1, 2):
+        f.add_robot(n, 0.0, np.array([0.0, float(n), 0.1]), np.eye(3) * 0.01)
+    a = rng.normal(size=f.P.shape)
+    f.P = a @ a.T * 0.01 + np.eye(f.P.shape[0]) * 0.01  # correlated, as after an update
+    f.correlated = True
+    ref = f.P.copy()
+    b = {n: slice(f.at[n], f.at[n] + NX) for n in (1, 2)}
+    for step in range(12):
+        n = 1 + step % 2
+        rs = f.r[n]
+        rs.v, rs.w = rng.uniform(0, 0.1), rng.uniform(-0.5, 0.5)
+        t = rs.t + rng.uniform(0.01, 0.3)
+        _, fn, _ = biased_motion(
+            rs.s, rs.v, rs.w, t - rs.t, cfg.bias_tau_s, cfg.camera_common_tau_s
+        )
+        m = np.eye(ref.shape[0])
+        m[b[n], b[n]] = fn
+        ref = m @ ref @ m.T
+        f._predict(n, t)
+        ref[b[n], b[n]] = f.P[b[n], b[n]]  # the diagonal block: F P F^T + Q, kept current
+    f._sync()
+    np.testing.assert_allclose(f.P, ref, atol=1e-12)
 
 
 def test_gross_outliers_are_gated_and_named(dataset6):

@@ -157,7 +157,9 @@ def test_replay_dead_reckons_every_robot_and_analyze_scores_each_outside_the_gap
     rep = reps[0]
     assert rep["robot"] == "r1,r4" and rep["pipeline_errors"] == 0
     assert rep["fed"] == {k: v for k, v in report["messages"].items() if k != "truth"}
-    assert rep["outputs"] == {"dead_reckoning": report["messages"]["velocity"]}
+    assert rep["outputs"]["dead_reckoning"] == report["messages"]["velocity"]
+    assert sorted(rep["outputs"]) == ["dead_reckoning", "pose"]  # 1 and 4 do not meet
+    _the_replayed_ekf_is_the_batch_ekf(tmp_path / "a.mcap", DATA, START_S, SECONDS, ROBOTS)
 
     summary = _cli("analyze", str(tmp_path / "a.mcap"), "--out", str(tmp_path / "an"),
                    "--no-plots", "--json")  # fmt: skip
@@ -170,11 +172,80 @@ def test_replay_dead_reckons_every_robot_and_analyze_scores_each_outside_the_gap
         assert n == report["per_robot"][robot]["velocity"]
         assert 0.9 * n < dr["samples"] < n  # the instants inside the gap are not scored
         assert dr["aligned_at_start"] and np.isfinite(dr["position_error_m"]["rms"])
+        # the MRCLAM EKF's pose, scored against the truth outside its gaps
+        ekf = ra["paths"]["pose"]
+        assert ekf["position_error_m"]["rms"] < 0.2, (robot, ekf["position_error_m"])
+        assert ra["ekf_3sigma"]["pose"]["contained_fraction"] >= 0.95
+        assert ra["ekf_3sigma"]["pose"]["poses"] < ra["topics"]["pose"]  # the gap
     # analyze on the imported log alone: the truth, its gaps and the map, per robot
     summary = _cli("analyze", str(src), "--out", str(tmp_path / "an0"), "--no-plots", "--json")
     assert sorted(summary["robots"]) == ["r1", "r4"]
     for ra in summary["robots"].values():
         assert ra["reference_distance_m"] > 0 and ra["truth_gaps"]["count"] >= 1
+
+
+def _the_replayed_ekf_is_the_batch_ekf(
+    replayed: Path, data: Path, start_s: float, seconds: float, robots: tuple[int, ...]
+) -> dict:
+    """The replay's ``pose`` messages (the EKF service, message by message, the robots
+    exchanging estimates and position fixes) are the batch runner's split-CI track on
+    the same rows of the files; the batch's tracks."""
+    from localization.mrclam import MrclamRun, RobotRun, load_mrclam
+    from localization.mrclam_ekf import MrclamEkfConfig, run_ekf
+
+    run = load_mrclam(data, list(robots))
+    lo = round(run.start_s * 1000) + round(start_s * 1000)
+
+    def cut(a: np.ndarray) -> np.ndarray:
+        ms = np.round(a[:, 0] * 1000).astype(np.int64)
+        return a[(ms >= lo) & (ms <= lo + round(seconds * 1000))]
+
+    robots = {
+        n: RobotRun(n, cut(r.odometry), cut(r.measurements), r.truth) for n, r in run.robots.items()
+    }
+    sliced = MrclamRun(run.directory, robots, run.landmarks, run.barcodes)
+    tracks = run_ekf(sliced, config=MrclamEkfConfig(cooperation="split_ci"))
+    poses: dict[str, list] = {}
+    for m in read_messages(replayed):
+        if m.topic.endswith("/pose"):
+            poses.setdefault(m.topic.split("/")[1], []).append(m.msg)
+    for n, tr in tracks.items():
+        got = poses[f"r{n}"]
+        grid = tr.on_grid
+        assert len(got) == int(grid.sum())
+        np.testing.assert_allclose([p.stamp_ns * 1e-9 for p in got], tr.t[grid], atol=1e-6)
+        np.testing.assert_allclose([(p.pose.x, p.pose.y) for p in got], tr.mean[grid, :2],
+                                   atol=1e-6)  # fmt: skip
+        cov = np.array([p.covariance for p in got]).reshape(-1, 3, 3)
+        # (the split-CI weight is a grid search: 1e-7 s apart, it may land a step away)
+        np.testing.assert_allclose(cov, tr.cov[grid], rtol=1e-3, atol=1e-9)
+    return tracks
+
+
+def test_the_ekf_replay_of_robots_that_meet_is_the_batch_ekf_and_analyze_scores_it(
+    tmp_path: Path,
+) -> None:
+    """40 s of robots 2, 3 and 5, which see one another: the replayed EKF services
+    exchange estimates and position fixes and give the batch's split-CI tracks; analyze
+    scores their pose (RMSE, 3-sigma containment) against the truth."""
+    from hilnav.analysis.analyze import analyze
+    from hilnav.replay.replayer import replay
+
+    src, dst = tmp_path / "coop.mcap", tmp_path / "coop_replay.mcap"
+    import_mrclam(DATA, src, seconds=40.0, start_s=60.0, robots=[2, 3, 5])
+    rep = replay(src, dst, progress=False)
+    assert rep.pipeline_errors == 0 and rep.outputs["peer_fix"] > 20
+    tracks = _the_replayed_ekf_is_the_batch_ekf(dst, DATA, 60.0, 40.0, (2, 3, 5))
+    seen = sum(t.counts["seen_accepted"] + t.counts["seen_no_gain"] for t in tracks.values())
+    assert seen == rep.outputs["peer_fix"]  # every fix reached its robot
+    assert sum(t.counts["robot_accepted"] + t.counts["seen_accepted"] for t in tracks.values())
+    result = analyze(dst)
+    for robot in ("r2", "r3", "r5"):
+        ra = result.robots[robot]
+        assert ra.ekf_3sigma["pose"].contained_fraction >= 0.95
+        assert ra.ekf_3sigma["pose"].poses >= 790  # 40 s every 0.05 s (no truth gap)
+        err = ra.series.errors["pose"].pos_err
+        assert np.sqrt(np.mean(err**2)) < 0.12
 
 
 def _run_dir(tmp_path: Path) -> Path:

@@ -40,17 +40,57 @@ def test_each_robots_boxes_reach_the_others_and_outputs_say_whose_they_are() -> 
     assert pipe.pipes["r1"].peers == [("r2", "r2")] and pipe.pipes["r2"].peers == []
 
 
-def test_velocity_robot_counts_range_bearing_for_the_localizers_and_keeps_the_map() -> None:
+class FixRobot:
+    """Shares "est"; on a peer's "est" answers with a "fix" (shared too) for the others."""
+
+    shared_outputs = ("est", "fix")
+
+    def __init__(self, robot: str) -> None:
+        self.robot = robot
+        self.got: list[tuple[str, str]] = []
+
+    def feed(self, topic: str, msg: object) -> list[tuple[str, object]]:
+        return [("est", self.robot)]
+
+    def feed_other(self, robot: str, topic: str, msg: object) -> list[tuple[str, object]]:
+        self.got.append((robot, topic))
+        return [("fix", self.robot)] if topic == "est" else []
+
+
+def test_outputs_made_in_feed_other_are_shared_too() -> None:
+    pipe = MultiRobotPipeline(["r1", "r2", "r3"], FixRobot)
+    out = pipe.feed_robot("r1", "velocity", "m")
+    assert [(r, t) for r, t, _ in out] == [("r1", "est"), ("r2", "fix"), ("r3", "fix")]
+    # each fix reached every robot but the one that made it, the first robot's "est" both
+    assert pipe.pipes["r1"].got == [("r2", "fix"), ("r3", "fix")]
+    assert pipe.pipes["r2"].got == [("r1", "est"), ("r3", "fix")]
+    assert pipe.pipes["r3"].got == [("r1", "est"), ("r2", "fix")]
+
+
+def test_velocity_robot_feeds_its_localizers_or_counts_range_bearing_unused() -> None:
     assert initial_poses({"initial_pose.r1": "1,2,0.5", "initial_pose.r2": "bad", "x": "1"}) == {
         "r1": Pose2D(1.0, 2.0, 0.5)
     }
-    p = VelocityRobotPipeline("r1", Pose2D(1.0, 2.0, 0.0))
+    p = VelocityRobotPipeline("r1", Pose2D(1.0, 2.0, 0.0), ekf=False)
     assert p.feed("landmark_range_bearing", RangeBearing(1, "r1", "l6", True, 2.0, 0.1, 6)) == []
     assert p.feed("peer_range_bearing", RangeBearing(1, "r1", "r2", False, 2.0, 0.1, 2)) == []
     assert dict(p.unused) == {"landmark_range_bearing": 1, "peer_range_bearing": 1}
     ((topic, est),) = p.feed("velocity", VelocityOdometry(S, 0.1, 0.0))
     assert topic == "dead_reckoning" and est.pose == Pose2D(1.0, 2.0, 0.0) and est.frame == "map"
     assert VelocityRobotPipeline("r2").dr.frame == "odom"  # no initial pose: its own frame
+    assert VelocityRobotPipeline("r2").services == ["dead_reckoning"]  # nor an EKF
+    # With an initial pose, the MRCLAM EKF: it takes the range-bearing messages and
+    # publishes its pose every 0.05 s from the first velocity message.
+    p = VelocityRobotPipeline("r1", Pose2D(1.0, 2.0, 0.0))
+    assert p.services == ["dead_reckoning", "mrclam_ekf"]
+    assert p.feed("landmark_range_bearing", RangeBearing(1, "r1", "l6", True, 2.0, 0.1, 6)) == []
+    out = p.feed("velocity", VelocityOdometry(S, 0.1, 0.0))
+    assert [t for t, _ in out] == ["dead_reckoning", "pose"] and not p.unused
+    out = p.feed("velocity", VelocityOdometry(S + S // 10, 0.1, 0.0))
+    poses = [m for t, m in out if t == "pose"]
+    assert [m.stamp_ns for m in poses] == [S + S // 20, S + S // 10]
+    assert poses[0].pose.x == 1.0  # the command acts 0.18 s after its stamp
+    assert p.localizers[0].all_counts["before_start"] == 1
 
 
 def test_a_velocity_log_without_metadata_replays_every_robot(tmp_path: Path) -> None:

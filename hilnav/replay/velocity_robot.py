@@ -8,15 +8,15 @@
   message; frame ``map`` when the log gives the initial pose (metadata
   ``initial_pose.<robot>``), else ``odom`` from the origin.
 - ``landmark_map`` (msgs.LandmarkMap): kept (``self.landmark_map``).
-- ``landmark_range_bearing``, ``peer_range_bearing`` (msgs.RangeBearing): counted in
-  ``self.unused``. They are service inputs (hilnav.topics.SERVICE_INPUTS), so replay feeds
-  them here in log order: the hook where the guaranteed (CP) and EKF localizers that take
-  landmark and robot-to-robot range-bearing plug in, with the peers' boxes arriving
-  through ``feed_other`` (hilnav.replay.multi_robot).
+- every message also goes to each service of ``self.localizers``, the localizers that
+  take velocity odometry, the landmark map and range-bearing measurements, each with
+  ``feed(topic, msg)`` and ``feed_other(robot, topic, msg)`` (the other robots' outputs,
+  hilnav.replay.multi_robot). With an initial pose: the MRCLAM EKF
+  (localization.mrclam_service: ``pose`` every 0.05 s, ``peer_fix``). Range-bearing
+  messages that no localizer takes are counted in ``self.unused``.
 
-The EKF of localization.ekf is not run: its message API takes wheel odometry, gyro and
-GPS, none of which such a robot has, and velocity odometry with range-bearing updates is
-what it gains with those localizers.
+The outputs the other robots need (``SHARED_OUTPUTS``: the EKF's published estimates and
+its position fixes of the robots it saw) go to their ``feed_other``.
 """
 
 from __future__ import annotations
@@ -25,10 +25,14 @@ from collections import Counter
 from typing import Any
 
 from fusion.dead_reckoning import VelocityDeadReckoning
+from localization.mrclam_config import MrclamEkfConfig
+from localization.mrclam_service import MrclamEkfService
 from msgs import LandmarkMap, Pose2D, RangeBearing, VelocityOdometry
 
 Outputs = list[tuple[str, Any]]
 RANGE_BEARING_TOPICS = ("landmark_range_bearing", "peer_range_bearing")
+#: Outputs of a robot's localizers that the other robots' localizers take.
+SHARED_OUTPUTS = ("pose", "peer_fix")
 
 
 def initial_poses(meta: dict[str, str]) -> dict[str, Pose2D]:
@@ -47,26 +51,48 @@ def initial_poses(meta: dict[str, str]) -> dict[str, Pose2D]:
 
 
 class VelocityRobotPipeline:
-    """The services of one velocity-odometry robot (see the module docstring)."""
+    """The services of one velocity-odometry robot (see the module docstring).
+    ``ekf``: the MRCLAM EKF's configuration (None: its replay default; False: no EKF)."""
 
-    def __init__(self, robot: str, initial: Pose2D | None = None) -> None:
+    shared_outputs = SHARED_OUTPUTS
+
+    def __init__(
+        self,
+        robot: str,
+        initial: Pose2D | None = None,
+        ekf: MrclamEkfConfig | None | bool = None,
+    ) -> None:
         self.robot = robot
         frame = "map" if initial is not None else "odom"
         self.dr = VelocityDeadReckoning(initial, frame=frame, source=f"{robot}/dead_reckoning")
         self.landmark_map: LandmarkMap | None = None
         self.unused: Counter = Counter()
         self.services = ["dead_reckoning"]
+        self.localizers: list[Any] = []
+        if initial is not None and ekf is not False:
+            cfg = ekf if isinstance(ekf, MrclamEkfConfig) else None
+            self.localizers.append(MrclamEkfService(robot, initial, cfg))
+            self.services.append("mrclam_ekf")
 
     def feed(self, topic: str, msg: Any) -> Outputs:
+        out: Outputs = []
         if topic == "velocity" and isinstance(msg, VelocityOdometry):
             est = self.dr.feed(msg)
-            return [] if est is None else [("dead_reckoning", est)]
-        if topic == "landmark_map" and isinstance(msg, LandmarkMap):
+            if est is not None:
+                out.append(("dead_reckoning", est))
+        elif topic == "landmark_map" and isinstance(msg, LandmarkMap):
             self.landmark_map = msg
-        elif topic in RANGE_BEARING_TOPICS and isinstance(msg, RangeBearing):
-            self.unused[topic] += 1  # the localizers' hook (module docstring)
-        return []
+        elif (
+            topic in RANGE_BEARING_TOPICS and isinstance(msg, RangeBearing) and not self.localizers
+        ):
+            self.unused[topic] += 1
+        for svc in self.localizers:
+            out += svc.feed(topic, msg)
+        return out
 
     def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
-        """Another robot's outputs (its pose boxes, for cooperative localization)."""
-        return []
+        """Another robot's outputs (its estimates, position fixes, boxes)."""
+        out: Outputs = []
+        for svc in self.localizers:
+            out += svc.feed_other(robot, topic, msg)
+        return out
