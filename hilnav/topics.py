@@ -86,7 +86,10 @@ _TABLE = (
           published=True),
     Topic("status", DaemonStatus, "daemon", "the daemon's loop, bus and motion gate, 1 Hz",
           published=True),
-    Topic("truth", GroundTruth, "sim", "the simulated world's true pose"),
+    Topic("truth", GroundTruth, "sim", "the simulated world's true pose (an imported data "
+          "set's reference poses)"),
+    Topic("reference_map", OccupancyGridMsg, "external", "a data set's map at its reference "
+          "poses: what hilnav analyze scores the maps against"),
     Topic("relative", RelativeMeasurement, "external", "range-bearing to another robot"),
     Topic("control", VehicleControl, "external", "car-like vehicle control (speed, steering)",
           service_input=True),

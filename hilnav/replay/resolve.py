@@ -52,10 +52,13 @@ def choose_pipeline(
     """The pipeline class to replay with, and the config source to report.
 
     "daemon": hilnav.pipeline.Pipeline; "landmark-slam": EKF-SLAM over controls and scans
-    (hilnav.replay.landmark_slam); "auto": landmark-slam for a landmark data set (its
-    metadata names one, or the robot has controls or landmark scans and no odometry)."""
+    (hilnav.replay.landmark_slam); "auto": the metadata's ``pipeline`` when it names one,
+    else landmark-slam for a landmark data set (its metadata names one, or the robot has
+    controls or landmark scans and no odometry)."""
     if name not in PIPELINES:
         raise ValueError(f"pipeline {name!r}: choose one of {', '.join(PIPELINES)}")
+    if name == "auto" and meta.get("pipeline") in PIPELINES[1:]:
+        name = meta["pipeline"]  # the importer says which
     if name == "auto":
         name = "daemon"
         if meta.get("dataset"):
