@@ -8,7 +8,10 @@ sensors from the laser's beams. This module holds what every loader returns
 - :func:`repair_times`: logged timestamps that go backwards (the Intel log has a few
   percent of them: one stamp seconds late between two good ones) are found as the
   complement of the longest non-decreasing run of stamps and re-stamped by linear
-  interpolation between their good neighbours (counted, never raised);
+  interpolation between their good neighbours; then a stamp bunched with a neighbour
+  (an interval under a tenth of the median next to one over 0.4 of it: two
+  messages logged together, though the robot moved between them) is moved to the middle
+  of its neighbours, so motion never seems to happen in no time (counted, never raised);
 - :func:`load_scan_mat`: the ``.mat`` piece of the Intel data set (``beam_data``,
   ``odom``, ``timestamp``, ``beam_start``/``beam_end``/``beam_n``);
 - :func:`match_keyframes`: which scans a corrected log's keyframes are (identical range
@@ -98,15 +101,30 @@ def repair_times(t: np.ndarray) -> tuple[np.ndarray, int]:
     keep = np.zeros(n, dtype=bool)
     if len(idx):
         keep[_longest_non_decreasing(t[idx], idx)] = True
-    if keep.all():
-        return t.copy(), 0
     if not keep.any():
         raise LaserLogError("no usable timestamp in the log")
     good = np.flatnonzero(keep)
     out = t.copy()
     bad = np.flatnonzero(~keep)
     out[bad] = np.interp(bad, good, t[good])
-    return out, int(len(bad))
+    return out, int(len(bad)) + _spread_bunched(out)
+
+
+def _spread_bunched(t: np.ndarray) -> int:
+    """Move bunched stamps (module doc) to the middle of their neighbours, in place."""
+    dt = np.diff(t)
+    pos = dt[dt > 0]
+    if len(pos) < 3:
+        return 0
+    med = float(np.median(pos))
+    moved = np.zeros(len(t), dtype=bool)
+    for _ in range(3):  # a run of several bunched stamps spreads out over a few passes
+        for i in range(1, len(t) - 1):
+            a, b = t[i] - t[i - 1], t[i + 1] - t[i]
+            if min(a, b) < 0.1 * med and max(a, b) > 0.4 * med:
+                t[i] = 0.5 * (t[i - 1] + t[i + 1])
+                moved[i] = True
+    return int(moved.sum())
 
 
 def _longest_non_decreasing(v: np.ndarray, idx: np.ndarray) -> np.ndarray:
