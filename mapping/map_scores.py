@@ -146,7 +146,7 @@ def laser_map(
     reach_m: float = 8.0,
     p_hit: float = 0.75,
     p_pass: float = 0.4,
-    chunk: int = 32,
+    chunk: int = 8,
 ) -> ReferenceMap:
     """A reference map from laser scans ``ranges`` (N, B) at bearings ``angles`` taken at
     robot ``poses`` (N, 3; rows with NaN skipped): every cell a beam ends in gains
