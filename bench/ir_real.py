@@ -88,13 +88,6 @@ def find_inputs(d: Path) -> tuple[Path, Path | None]:
     raise SystemExit(f"{d}: no CARMEN log (*.log, *.clf) or scan .mat found")
 
 
-def parse_mounts(text: str) -> np.ndarray:
-    rows = [[float(v) for v in part.split(",")] for part in text.split(";") if part.strip()]
-    m = np.array(rows, dtype=float).reshape(-1, 3)
-    m[:, 2] *= DEG
-    return m
-
-
 def headings(run: EmulatedRun, params: HeadingParams, use_gyro: bool) -> list[HeadingEstimate]:
     """The heading filter's estimate at each scan (messages in stamp order, as logged)."""
     f = HeadingFilter(params, initial=run.initial_pose)
@@ -191,7 +184,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
     cfg = load_config(None)
-    mounts = parse_mounts(args.mounts) if args.mounts else np.array(cfg.geometry.ir_mounts_rad())
+    from hilnav.commands.importer import parse_mounts  # the CLI's --ir-mounts syntax
+
+    mounts = np.array(parse_mounts(args.mounts) if args.mounts else cfg.geometry.ir_mounts_rad())
     src, ref_log = find_inputs(args.dir)
     ref_log = args.reference or ref_log
     log = load_laser_log(src, ref_log).head(args.scans)

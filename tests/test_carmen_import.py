@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fakes.world import IrErrorModel
 from fakes.world.laser_ir import LaserIrBoard, ir_ranges_from_laser
 from hilnav.log.reader import read_messages, read_metadata
 from mapping.carmen import load_carmen, load_laser_log
@@ -105,8 +106,7 @@ def test_ir_from_laser_wall_edges_and_unknown() -> None:
     assert math.isinf(r[3])  # the laser saw that ray free (no return beyond 80 deg)
     s = LaserIrBoard(4).scan(r, 5)
     assert s.status == ("ok", "ok", "invalid", "too_far")
-    noisy = LaserIrBoard(4, noise=__import__("fakes.world", fromlist=["x"]).IrErrorModel(),
-                         median_window=1, seed=3).scan(r, 5)  # fmt: skip
+    noisy = LaserIrBoard(4, noise=IrErrorModel(), median_window=1, seed=3).scan(r, 5)
     assert noisy.status[2] == "invalid" and noisy.ranges_m[0] == pytest.approx(2.8, abs=0.3)
 
 

@@ -24,15 +24,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     vp.add_argument("out", help="MCAP log to write")
     vp.add_argument("--robot", default="vp", help="robot name in the topics (default vp)")
     vp.add_argument("--duration", type=float, help="only the first S seconds")
-    vp.add_argument(
+    _compression(vp)
+    vp.set_defaults(func=run_victoria_park)
+    _register_carmen(isub)
+    p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
+
+
+def _compression(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
         "--compression",
         default="zstd",
         choices=("zstd", "lz4", "none"),
         help="MCAP chunk compression (zstd: small files; lz4: faster; none)",
     )
-    vp.set_defaults(func=run_victoria_park)
-    _register_carmen(isub)
-    p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
 def run_victoria_park(args: argparse.Namespace) -> int:
@@ -87,7 +91,7 @@ def _register_carmen(isub: argparse._SubParsersAction) -> None:
         choices=("auto", "corrected", "odometry"),
         help="what the laser lines' poses are (auto: corrected when they part from ODOM)",
     )
-    c.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
+    _compression(c)
     c.set_defaults(func=run_carmen)
 
 
