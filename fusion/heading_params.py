@@ -14,8 +14,9 @@ DEG = math.pi / 180.0
 
 @dataclass(frozen=True)
 class HeadingParams:
-    """Parameters of the heading filter (module doc; defaults: the paper's eq. 4 figures,
-    read per distance and per turn, and a Pioneer's systematic errors)."""
+    """Parameters of the heading filter (fusion.heading's module doc). Defaults: the
+    paper's eq. 4 figures, read per distance and per turn; the systematic priors are 0
+    here (the paper's model), the robot config's [noise] sets them for the daemon."""
 
     alpha_rad_per_m: float = 3.0 * DEG
     beta: float = 0.1
