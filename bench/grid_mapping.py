@@ -6,9 +6,10 @@ room with furniture (FloorPlan ``paper_room``). The IR readings go through the f
 own error model (fakes.world.ir_model: curve with near-range ambiguity, voltage noise,
 dropouts, 10-bit ADC) and the driver's curve (drivers.sharp) with a 3-sample median, so
 the map sees the IrScan messages the real driver would report. The heading is encoder +
-gyro (eq. 1-4): ``fusion.heading.HeadingFilter`` with the paper's alpha, beta, gamma plus
-the gyro's angle random walk, fed the encoder and (bias-calibrated) gyro heading changes
-of every 0.1 s scan period.
+gyro (eq. 1-4): ``fusion.heading.HeadingFilter`` with the robot config's noise (the
+paper's alpha, beta, gamma per distance and per turn, the systematic terms) and the gyro's
+angle random walk, fed the encoder and (bias-calibrated) gyro heading changes
+of every 0.1 s scan period, with the daemon's parameters (the robot config's noise).
 
 Two maps are built from the same run: without data association (poses as estimated),
 and with sample-based data association (eq. 7-8). Both are compared with the true map
@@ -128,6 +129,18 @@ def _steer(robot: DiffDriveRobot, target: tuple[float, float], speed_mps: float)
     return True
 
 
+def heading_params(gyro: GyroErrorModel) -> HeadingParams:
+    """The daemon's heading filter (the robot config's noise: eq. 4 per distance and per
+    turn, and the systematic terms), with the emulated CruzCore's angle random walk."""
+    from dataclasses import replace
+
+    from hilnav.config import load_config
+    from hilnav.services import heading_params as from_config
+
+    p = from_config(load_config(None))
+    return replace(p, gyro_arw_rad_per_sqrt_s=gyro.noise_density_radps_rthz)
+
+
 class _HeadingInput:
     """Encoder + gyro heading (eq. 1-4): the gyro integrated between scans, the encoders
     differenced, both fed to the heading filter once per scan period."""
@@ -136,9 +149,7 @@ class _HeadingInput:
         self.robot, self.gyro = robot, gyro
         start = robot.pose
         self.bias = _boot_bias(gyro, dt)
-        self.filt = HeadingFilter(
-            HeadingParams(gyro_arw_rad_per_sqrt_s=gyro.noise_density_radps_rthz), initial=start
-        )
+        self.filt = HeadingFilter(heading_params(gyro), initial=start)
         self.enc_prev = robot.encoder_m()
         self.gyro_acc = 0.0
 

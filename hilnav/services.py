@@ -64,18 +64,29 @@ def initial_pose(cfg: RobotConfig) -> Pose2D:
     return Pose2D(x, y, wrap_angle(math.radians(yaw_deg)))
 
 
+def heading_params(cfg: RobotConfig) -> HeadingParams:
+    """The heading filter's parameters from the robot config."""
+    n = cfg.noise
+    return HeadingParams(
+        alpha_rad_per_m=n.encoder_alpha_rad_per_m,
+        beta=n.encoder_beta,
+        gamma=n.gyro_gamma,
+        gyro_arw_rad_per_sqrt_s=n.gyro_arw_rad_per_sqrt_s,
+        encoder_bias_sigma_rad_per_m=n.encoder_bias_sigma_rad_per_m,
+        encoder_bias_rad_per_m=n.encoder_bias_rad_per_m,
+        track_scale_sigma=n.track_scale_sigma,
+        gyro_scale_sigma=n.gyro_scale_sigma,
+        gyro_bias_sigma_radps=n.gyro_bias_sigma_radps,
+        gyro_bias_walk_radps_per_sqrt_s=n.gyro_bias_walk_radps_per_sqrt_s,
+        bias_min_rest_s=cfg.services.heading.bias_min_rest_s,
+    )
+
+
 class HeadingAdapter:
     """fusion.heading.HeadingFilter fed odometry and gyro -> ``heading``."""
 
     def __init__(self, cfg: RobotConfig) -> None:
-        n = cfg.noise
-        params = HeadingParams(
-            alpha_rad_per_m=n.encoder_alpha_rad_per_m,
-            beta=n.encoder_beta,
-            gamma=n.gyro_gamma,
-            gyro_arw_rad_per_sqrt_s=n.gyro_arw_rad_per_sqrt_s,
-            bias_min_rest_s=cfg.services.heading.bias_min_rest_s,
-        )
+        params = heading_params(cfg)
         arrival = ArrivalOrder(cfg.devices.gyro.rate_hz)
         self.filter = HeadingFilter(params, initial=initial_pose(cfg), arrival=arrival)
 

@@ -93,7 +93,10 @@ _TABLE = (
           published=True),
     Topic("status", DaemonStatus, "daemon", "the daemon's loop, bus and motion gate, 1 Hz",
           published=True),
-    Topic("truth", GroundTruth, "sim", "the simulated world's true pose"),
+    Topic("truth", GroundTruth, "sim", "the simulated world's true pose (an imported data "
+          "set's reference poses)"),
+    Topic("reference_map", OccupancyGridMsg, "external", "a data set's map at its reference "
+          "poses: what hilnav analyze scores the maps against"),
     Topic("relative", RelativeScan, "external", "one range-bearing scan of the other robots "
           "(cooperative CP)", service_input=True),
     Topic("control", VehicleControl, "external", "car-like vehicle control (speed, steering)",

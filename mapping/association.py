@@ -18,47 +18,52 @@ module that holds it):
 
 - The window: the samples are weighted with the scans of the last ``window_m`` of travel
   (short-term odometry is good), the log-likelihood tempered by ``temperature`` because
-  nearby beams are not independent, and annealed over ``refine_rounds`` of weighting,
-  resampling and a shrinking jitter (:mod:`mapping.scan_records`,
-  :mod:`mapping.pose_samples`).
+  nearby beams are not independent (:mod:`mapping.scan_records`).
+- The posterior is sampled by tempering with Metropolis-Hastings moves, so its mean and
+  covariance rest on many samples (:func:`mapping.pose_samples.smc_posterior`); the
+  beam model is evaluated on a distance field of the map for speed
+  (:class:`mapping.beam_model.FieldBeamModel`).
 - The map matched against is the map *without the most recent* ``ref_lag_m`` of data:
   the newest scans were inserted at the drifted pose and would pull every sample back
   to it (kept here, beside the map).
-- Re-alignment ramps the correction in over the span since the last correction
-  (:mod:`mapping.loop_correction`); the span is re-inserted into a snapshot of the map
-  taken at the last correction (exact: no "un-inserting" of clamped log-odds; here).
-- Never make the map worse: the uncorrected branch is kept when the evidence is flat
-  ("weak"), when the uncorrected pose is plausible under the posterior ("confirmed"), or
-  when the corrected pose does not explain the window better ("worse"); every check is
-  reported as a :class:`msgs.AssociationReport` with its reason
-  (:mod:`mapping.loop_correction`).
-- Beam model against a map: the expected range is the centre of the first run of
-  occupied cells along the ray, and sigma_hit covers the map's wall thickness as well as
-  the sensor's noise; both were needed for an undrifted run to stay untouched
-  (:mod:`mapping.beam_model`).
+- A correction must earn its place (:mod:`mapping.loop_correction`): enough effective
+  samples, the uncorrected pose outside the posterior, a likelihood ratio on the window
+  beyond Wilks' threshold, and then a sequential likelihood-ratio test against the
+  uncorrected branch on the scans that come after it (held out from the fit). Every
+  check is reported as a :class:`msgs.AssociationReport` with its reason.
+- Bounded memory and time: a snapshot of the map is kept every ``snapshot_every_m`` of
+  travel over the last ``reinsert_m``; an accepted correction is ramped in over the
+  scans since the oldest of them, which are re-inserted into it (exact: no
+  "un-inserting" of clamped log-odds), so a correction never re-inserts more than about
+  ``reinsert_m`` of scans, however long ago the last one was; and the re-insertion is
+  spread over the next steps, ``reinsert_per_step`` scans at a time (the old map is
+  kept, and the new scans go into it, until the rebuilt one has caught up), so no step
+  stalls. Every scan's updates are applied as they are computed.
+- The heading sigma the scans are inserted with (eq. 6) is the filter's, but after a
+  correction only its growth since then is added to the posterior's.
 - The samples spread with their own noise model plus the growth of the heading filter's
-  variance, which is overconfident over tens of metres (:mod:`mapping.pose_samples`).
+  variance (:mod:`mapping.pose_samples`).
 
 Modules: :mod:`mapping.association_config` (the parameters), :mod:`mapping.scan_records`
 (the scans, the nodes and the window), :mod:`mapping.pose_samples` (the sample cloud:
-spread, weights, resampling, annealing), :mod:`mapping.beam_model` (eq. 7-8 against the
+spread, weights, resampling, tempering), :mod:`mapping.beam_model` (eq. 7-8 against the
 map), :mod:`mapping.loop_correction` (the acceptance tests and the re-alignment),
 :mod:`mapping.se2` (pose algebra). This module keeps the state (estimate, cloud, maps,
-records) and runs them scan by scan.
+snapshots, records) and runs them scan by scan.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from mapping.association_config import AssociationConfig
-from mapping.beam_model import BeamModel
+from mapping.beam_model import BeamModel, FieldBeamModel, pair_ratio
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.ir_inverse import KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
-from mapping.loop_correction import check_loop, realigned_poses
+from mapping.loop_correction import HeldOut, check_loop, realigned_poses
 from mapping.pose_samples import spread
 from mapping.scan_records import ScanRecords
 from mapping.se2 import compose, relative, wrap
@@ -87,22 +92,29 @@ class SampleAssociation:
         self.config = config or AssociationConfig()
         self.model = IrInverseModel(inverse or InverseModelConfig())
         self.grid = OccupancyGrid(grid_config)
-        self._anchor = self.grid.copy()
         self._ref = self.grid.copy()
-        self._anchor_idx = 0
         self._ref_upto = 0
+        # (first scan not in it, travel then, the map then): the re-insertion window.
+        self._snaps: list[tuple[int, float, OccupancyGrid]] = [(0, 0.0, self.grid.copy())]
         self._rec = ScanRecords(self.mounts)
         self._rng = np.random.default_rng(seed)
         self._particles = np.zeros((self.config.samples, 3))
         self._estimate: np.ndarray | None = None
         self._prev_in: np.ndarray | None = None
         self._prev_var = 0.0
+        self._var_base = 0.0  # heading variance after the last correction
+        self._var_at = 0.0  # the filter's variance then
         self._travel = 0.0
         self._last_check = 0.0
+        self._pending: HeldOut | None = None
+        self._sigma = 0.0
+        self._rebuild: _Rebuild | None = None
         self.reports: list[AssociationReport] = []
         self.cell_updates = 0
         self.skipped_readings = 0
+        self.reinserted_scans = 0
         self._beam_model = BeamModel(self.config)
+        self._field = FieldBeamModel(self.config)
 
     # -- public ---------------------------------------------------------------------------
     @property
@@ -124,13 +136,14 @@ class SampleAssociation:
         return np.array(self._rec.poses) if self._rec.poses else np.zeros((0, 3))
 
     def outcome_counts(self) -> dict[str, int]:
-        out: dict[str, int] = {"accepted": 0, "confirmed": 0, "weak": 0, "worse": 0}
+        out: dict[str, int] = {"accepted": 0, "unconfirmed": 0, "confirmed": 0, "weak": 0,
+                               "worse": 0}  # fmt: skip
         for r in self.reports:
             out[r.outcome] = out.get(r.outcome, 0) + 1
         return out
 
     def step(self, heading: HeadingEstimate, scan: IrScan) -> AssociationReport | None:
-        """Advance by one heading estimate + scan; returns a report if a check ran."""
+        """Advance by one heading estimate + scan; returns a report if a check decided."""
         cfg = self.config
         p_in = np.array([heading.pose.x, heading.pose.y, heading.pose.theta], dtype=float)
         if not np.all(np.isfinite(p_in)):
@@ -145,18 +158,23 @@ class SampleAssociation:
                 "configured: give one (x, y, yaw) mount per channel"
             )
         self.skipped_readings += int((kinds == KIND_SKIP).sum())
-        self._insert(ranges, kinds, math.sqrt(max(var, 0.0)), heading.stamp_ns)
+        sigma = math.sqrt(max(self._var_base + max(var - self._var_at, 0.0), 0.0))
+        self._sigma = sigma
+        self._insert(ranges, kinds, sigma, heading.stamp_ns)
         r = self._rec
         r.add_node_if_due(self._travel, cfg.node_spacing_m)
+        if self._rebuild is not None:
+            self._advance_rebuild()
+            return None
+        if self._pending is not None:
+            return self._held_out(ranges, kinds, var, heading.stamp_ns)
         if self._travel - self._last_check < cfg.check_every_m:
             return None
         self._last_check = self._travel
         node = r.covered_node(self._particles, self._estimate, self._travel, cfg)
         if node is None:
             return None
-        report = self._associate(node, heading.stamp_ns)
-        self.reports.append(report)
-        return report
+        return self._associate(node, heading.stamp_ns)
 
     def finish(self) -> OccupancyGrid:
         """The final map (kept for symmetry with a streaming service's shutdown)."""
@@ -165,8 +183,8 @@ class SampleAssociation:
     def log_likelihood(
         self, poses: np.ndarray, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray
     ) -> np.ndarray:
-        """Eq. 7-8 (:class:`mapping.beam_model.BeamModel`) for each pose (P, 3) in the
-        reference map: the map without the most recent ``ref_lag_m`` of data."""
+        """Eq. 7-8 (:class:`mapping.beam_model.BeamModel`, ray casting) for each pose
+        (P, 3) in the reference map: the map without the most recent ``ref_lag_m``."""
         return self._beam_model.log_likelihood(self._ref, poses, sens, ranges, kinds)
 
     # -- internals -------------------------------------------------------------------------
@@ -185,44 +203,153 @@ class SampleAssociation:
         self._prev_in, self._prev_var = p_in, var
 
     def _insert(self, ranges: np.ndarray, kinds: np.ndarray, sigma: float, stamp_ns: int) -> None:
-        """Record the scan at the estimate, insert it into the map, and age the records
-        older than ``ref_lag_m`` of travel into the reference map."""
+        """Record the scan at the estimate, insert it into the map, age the records older
+        than ``ref_lag_m`` of travel into the reference map, keep the snapshots."""
         r = self._rec
-        r.append(self._estimate.copy(), sigma, ranges, kinds, self._travel, stamp_ns)
+        cfg = self.config
         n = len(r)
-        self.cell_updates += self.model.integrate(self.grid, r.beams(n - 1, n))
-        upto = r.older_than(self._ref_upto, self._travel - self.config.ref_lag_m)
+        rebuilding = self._rebuild is not None
+        if not rebuilding and self._travel - self._snaps[-1][1] >= cfg.snapshot_every_m:
+            self._snaps.append((n, self._travel, self.grid.copy()))
+            # Only the snapshots within the re-insertion window are kept.
+            while len(self._snaps) > 1 and self._snaps[0][1] < self._travel - cfg.reinsert_m:
+                self._snaps.pop(0)
+        r.append(self._estimate.copy(), sigma, ranges, kinds, self._travel, stamp_ns)
+        self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1))
+        upto = r.older_than(self._ref_upto, self._travel - cfg.ref_lag_m)
+        # At most reinsert_per_step scans a step (after turning on the spot many scans
+        # come of age at once; the reference map may lag a few steps more).
+        upto = min(upto, self._ref_upto + cfg.reinsert_per_step)
         if upto > self._ref_upto:
             self.cell_updates += self.model.integrate(self._ref, r.beams(self._ref_upto, upto))
             self._ref_upto = upto
 
-    def _associate(self, node: int, stamp_ns: int) -> AssociationReport:
-        window = self._rec.window(self._estimate, self._travel, self.config)
-        check = check_loop(
-            self.config, self._particles, self._estimate, window, self.log_likelihood,
-            self._rng, node, stamp_ns,
-        )  # fmt: skip
-        if check.corrected is None or check.particles is None:
+    def _pair(self, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray):
+        """(pose a, pose b) -> the beams' likelihood ratio of a over b in the reference
+        map (ray casting, eq. 7-8), on the beams both see mapped space with."""
+        t = self.config.temperature
+
+        def pair(a: np.ndarray, b: np.ndarray) -> tuple[float, int]:
+            terms = self._beam_model.terms(self._ref, np.stack([a, b]), sens, ranges, kinds)
+            return pair_ratio(terms, t)
+
+        return pair
+
+    def _associate(self, node: int, stamp_ns: int) -> AssociationReport | None:
+        cfg = self.config
+        if 3.0 * self._sigma >= cfg.lost_heading_rad:
+            # The heading is lost (the filter says so): the samples point everywhere, any
+            # wall matches somewhere; no correction can be trusted.
+            why = (f"heading lost: 3 sigma {math.degrees(3 * self._sigma):.0f} deg >= "
+                   f"{math.degrees(cfg.lost_heading_rad):.0f} deg since the last correction")  # fmt: skip
+            rep = AssociationReport(stamp_ns, "weak", node, cfg.samples, 1.0, 0.0, reason=why)
+            self.reports.append(rep)
+            return rep
+        window = self._rec.window(self._estimate, self._travel, cfg)
+        p = self._particles
+        reach = cfg.max_range_m + 1.0
+        self._field.set_map(self._ref, (p[:, 0].min() - reach, p[:, 1].min() - reach,
+                                        p[:, 0].max() + reach, p[:, 1].max() + reach))  # fmt: skip
+        check = check_loop(cfg, p, self._estimate, window, self._field.log_likelihood,
+                           self._rng, node, stamp_ns, self._pair(*window))  # fmt: skip
+        post = check.posterior
+        if check.report.outcome == "confirmed" and post is not None:
+            # The evidence agrees with the estimate: the cloud becomes the posterior (the
+            # information is kept; the estimate is not moved).
+            self._particles = post.samples.copy()
+        if check.report.outcome != "candidate":
+            self.reports.append(check.report)
             return check.report
-        realigned = self._realign(check.corrected)
-        self._particles = check.particles
-        return replace(check.report, realigned_scans=realigned)
+        self._pending = HeldOut(check, self._estimate.copy(), self._travel)
+        return None
+
+    def _held_out(
+        self, ranges: np.ndarray, kinds: np.ndarray, var: float, stamp_ns: int
+    ) -> AssociationReport | None:
+        """Score the new scan on both branches; decide the pending candidate when due."""
+        h = self._pending
+        assert h is not None and h.check.posterior is not None
+        cfg = self.config
+        keep = kinds != KIND_SKIP
+        if keep.any():
+            h.score(self._estimate, self._pair(self.mounts[keep], ranges[keep], kinds[keep]))
+        decision = h.decision(self._travel, cfg)
+        if decision is None:
+            return None
+        self._pending = None
+        rep = h.check.report
+        why = (f"held-out LR {h.lam:.1f} nats over {h.scans} later scans ({h.beams} beams "
+               "seeing mapped space from both branches) "
+               f"({cfg.reject_nats} .. {cfg.confirm_nats}); {rep.reason.removeprefix('candidate: ')}")  # fmt: skip
+        if decision == "unconfirmed":
+            report = replace(rep, stamp_ns=stamp_ns, outcome="unconfirmed",
+                             reason=f"not confirmed by later data: {why}")  # fmt: skip
+            self.reports.append(report)
+            return report
+        corrected = h.corrected(self._estimate)
+        moved = relative(h.base, self._estimate)
+        post = h.check.posterior
+        self._particles = compose(post.samples, np.broadcast_to(moved, post.samples.shape))
+        realigned = self._realign(corrected)
+        self._var_base, self._var_at = float(post.cov[2, 2]), var
+        report = replace(rep, stamp_ns=stamp_ns, outcome="accepted", realigned_scans=realigned,
+                         reason=f"accepted: {why}")  # fmt: skip
+        self.reports.append(report)
+        return report
 
     def _realign(self, corrected: np.ndarray) -> int:
-        """Re-align the records since the last correction so the last pose is ``corrected``;
-        rebuild the map from the snapshot taken then (exact: no "un-inserting" of clamped
-        log-odds). Returns the number of scans moved."""
+        """Re-align the scans since the oldest snapshot kept (about ``reinsert_m`` back)
+        so the last pose is ``corrected``, and start rebuilding the reference map and the
+        map from that snapshot (exact; :meth:`_advance_rebuild` does it a bounded number
+        of scans per step). Returns the number of scans moved."""
         r = self._rec
-        a, n = self._anchor_idx, len(r)
-        new = realigned_poses(np.array(r.poses[a:n]), np.array(r.travel[a:n]), corrected)
-        for i in range(a, n):
-            r.poses[i] = new[i - a]
-        grid = self._anchor.copy()
-        self.cell_updates += self.model.integrate(grid, r.beams(a, n))
-        self.grid = grid
-        self._anchor = grid.copy()
-        self._ref = grid.copy()
-        self._anchor_idx = n
-        self._ref_upto = n
+        inside = [sn for sn in self._snaps if sn[1] >= self._travel - self.config.reinsert_m]
+        a, _, snap = inside[0] if inside else self._snaps[-1]
+        n = len(r)
+        if n - a >= 2:
+            new = realigned_poses(np.array(r.poses[a:n]), np.array(r.travel[a:n]), corrected)
+            for i in range(a, n):
+                r.poses[i] = new[i - a]
+        else:
+            r.poses[n - 1] = np.array(corrected, dtype=float)
+        self._snaps = [sn for sn in self._snaps if sn[0] <= a]  # the later ones hold old poses
         self._estimate = np.array(corrected, dtype=float)
+        self._rebuild = _Rebuild(a, a, snap.copy())
+        self.reinserted_scans += n - a
+        self._advance_rebuild()
         return n - a
+
+    def _advance_rebuild(self) -> None:
+        """Re-insert up to ``reinsert_per_step`` scans into the maps being rebuilt; once
+        they have caught up, they replace the map and the reference map."""
+        b = self._rebuild
+        assert b is not None
+        r = self._rec
+        cut = r.older_than(b.cursor, self._travel - self.config.ref_lag_m)
+        stop = min(len(r), b.cursor + self.config.reinsert_per_step)
+        while b.cursor < stop:
+            if b.grid is None and b.cursor >= cut:
+                b.grid, b.ref_upto = b.ref.copy(), b.cursor
+            target = b.ref if b.grid is None else b.grid
+            end = stop if b.grid is not None else min(stop, cut)
+            self.cell_updates += self.model.integrate(target, r.beams(b.cursor, end))
+            b.cursor = end
+        if b.cursor < len(r):
+            return
+        if b.grid is None:
+            b.grid, b.ref_upto = b.ref.copy(), b.cursor
+        self._ref, self._ref_upto, self.grid = b.ref, b.ref_upto, b.grid
+        self._rebuild = None
+
+
+@dataclass
+class _Rebuild:
+    """A map being rebuilt from a snapshot after a correction: the scans from ``start``
+    are re-inserted, up to ``cursor`` so far, first into ``ref`` (those older than the
+    reference lag), then into ``grid`` (a copy of it, holding the rest)."""
+
+    start: int
+    cursor: int
+    ref: OccupancyGrid
+    grid: OccupancyGrid | None = None
+    ref_upto: int = 0

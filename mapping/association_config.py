@@ -6,12 +6,18 @@ Grouped by where they are read: the nodes and checks (``node_spacing_m``, ``min_
 spread of the sample cloud (``heading_noise_*``, ``position_noise_*``, fig. 9) in
 :mod:`mapping.pose_samples`; the beam model of eq. 8 (``a_hit``, ``a_rand``, ``a_max``,
 ``sigma_hit_*``, ``occupied_p``, ``max_range_m``) in :mod:`mapping.beam_model`; the
-tempering and the acceptance tests (``temperature``, ``refine_rounds``, ``ess_max``,
-``lr_min``, ``significance_d2``) in :mod:`mapping.loop_correction`.
+tempering and the acceptance tests (``temperature``, ``max_stages``, ``mh_moves``,
+``ess_max``, ``min_distinct``, ``significance_d2``, ``lr_min``, and the held-out test
+``confirm_nats``, ``reject_nats``, ``confirm_min_m``, ``confirm_m``) in :mod:`mapping.loop_correction` and
+:mod:`mapping.pose_samples`; the bounded re-insertion (``reinsert_m``,
+``snapshot_every_m``, ``reinsert_per_step``) and the lost heading (``lost_heading_rad``:
+3 sigma of the heading since the last correction beyond which no check runs) in
+:mod:`mapping.association`.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -27,8 +33,8 @@ class AssociationConfig:
     window_m: float = 1.5
     window_scans: int = 8
     ref_lag_m: float = 3.0
-    heading_noise_rad_per_sqrt_m: float = 0.025
-    heading_noise_per_sqrt_rad: float = 0.03
+    heading_noise_rad_per_sqrt_m: float = 0.0
+    heading_noise_per_sqrt_rad: float = 0.0
     position_noise_m_per_sqrt_m: float = 0.02
     a_hit: float = 0.75
     a_rand: float = 0.2
@@ -37,16 +43,27 @@ class AssociationConfig:
     sigma_hit_per_m2: float = 0.01
     occupied_p: float = 0.65
     temperature: float = 4.0
-    refine_rounds: int = 3
+    max_stages: int = 12
+    mh_moves: int = 2
     ess_max: float = 0.5
-    lr_min: float = 2.0
+    min_distinct: int = 40
     significance_d2: float = 11.34
+    lr_min: float = 5.67
+    confirm_nats: float = 6.9
+    reject_nats: float = -2.3
+    confirm_min_m: float = 1.5
+    confirm_m: float = 3.0
+    reinsert_m: float = 12.0
+    snapshot_every_m: float = 3.0
+    reinsert_per_step: int = 10
+    lost_heading_rad: float = math.pi / 2
     max_range_m: float = 5.5
 
     def __post_init__(self) -> None:
         if self.samples < 10:
             raise ValueError("association samples must be >= 10")
-        for name in ("node_spacing_m", "check_every_m", "window_m", "temperature"):
+        for name in ("node_spacing_m", "check_every_m", "window_m", "temperature",
+                     "confirm_m", "reinsert_m", "snapshot_every_m"):  # fmt: skip
             if getattr(self, name) <= 0:
                 raise ValueError(f"association {name} must be > 0")
         if self.min_loop_m < self.ref_lag_m:
@@ -54,5 +71,14 @@ class AssociationConfig:
                 "association min_loop_m must be >= ref_lag_m (a node must lie in the "
                 "map matched against)"
             )
+        if self.reject_nats >= 0 or self.confirm_nats <= 0:
+            raise ValueError("association needs reject_nats < 0 < confirm_nats")
+        if not 0 <= self.confirm_min_m <= self.confirm_m:
+            raise ValueError("association needs 0 <= confirm_min_m <= confirm_m")
+        if self.reinsert_per_step < 1:
+            raise ValueError("association reinsert_per_step must be >= 1")
+        if self.max_stages < 1 or self.mh_moves < 0 or not 0 < self.min_distinct <= self.samples:
+            raise ValueError("association needs max_stages >= 1, mh_moves >= 0 and "
+                             "0 < min_distinct <= samples")  # fmt: skip
         if abs(self.a_hit + self.a_rand + self.a_max - 1.0) > 1e-6:
             raise ValueError("association a_hit + a_rand + a_max must be 1 (eq. 8 weights)")

@@ -14,7 +14,11 @@ Against a map rather than the world: the expected range z* is the centre of the 
 run of occupied cells along the ray (eq. 6 widens walls towards the robot, so the first
 occupied cell is biased short), and sigma_hit (0.2 m, growing with z^2) covers the map's
 wall thickness as well as the sensor's noise. Cells with p > ``occupied_p`` are
-obstacles, all others free.
+obstacles. A beam whose ray runs into never-observed cells (log-odds 0) before its range
+or the expected obstacle is uninformative (:func:`unknown_p`): otherwise a pose that
+throws the beams into unmapped space, or onto some other mapped wall, would beat the
+true pose whose beams end where the map is still unknown. :func:`pair_ratio` compares two
+poses on the beams informative for both.
 """
 
 from __future__ import annotations
@@ -31,18 +35,22 @@ from mapping.se2 import compose
 
 def expected_ranges(
     grid: OccupancyGrid, l_occ: float, world: np.ndarray, t: np.ndarray
-) -> np.ndarray:
-    """z* of every beam: ray casting from the sensor poses ``world`` (P, M, 3) at the
-    ranges ``t`` (T,) through the cells with log-odds above ``l_occ``; inf for a beam
-    that meets no obstacle. The centre of the first run of occupied cells is returned."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """(z*, u*) of every beam: ray casting from the sensor poses ``world`` (P, M, 3) at
+    the ranges ``t`` (T,) through the cells with log-odds above ``l_occ``; z* is the
+    centre of the first run of occupied cells (inf for a beam that meets none), u* the
+    range of the first cell never observed (log-odds 0, or outside the map; inf if none)."""
     ox, oy = world[..., 0][..., None], world[..., 1][..., None]
     c, s = np.cos(world[..., 2])[..., None], np.sin(world[..., 2])[..., None]
     row, col = grid.cell_of(ox + c * t, oy + s * t)  # (P, M, T)
     inside = grid.inside(row, col)
     rows, cols = grid.shape
-    occ = (grid.logodds > l_occ).reshape(-1)
+    lo = grid.logodds.reshape(-1)
     flat = np.where(inside, row * cols + col, 0)
-    hit = inside & occ[flat]
+    cell = lo[flat]
+    hit = inside & (cell > l_occ)
+    unknown = ~inside | (cell == 0.0)
+    u_star = np.where(unknown.any(axis=-1), t[np.argmax(unknown, axis=-1)], np.inf)
     any_hit = hit.any(axis=-1)
     # The expected range is the centre of the first run of occupied cells: eq. 6 widens
     # walls towards the robot, and the first occupied cell would be biased short.
@@ -50,7 +58,7 @@ def expected_ranges(
     started = np.arange(len(t)) >= first[..., None]
     run = started & (np.cumsum(started & ~hit, axis=-1) == 0)
     first = first + (run.sum(axis=-1) - 1) // 2
-    return np.where(any_hit, t[first], np.inf)  # (P, M)
+    return np.where(any_hit, t[first], np.inf), u_star  # (P, M) each
 
 
 class BeamModel:
@@ -71,14 +79,31 @@ class BeamModel:
         """Eq. 7-8: sum over beams of log p(z^k | x, m) for each pose (P, 3), the beams
         given by their sensor poses ``sens`` (M, 3) in the robot frame, ``ranges`` and
         ``kinds`` (M,); ray casting in ``grid``."""
+        return self.terms(grid, poses, sens, ranges, kinds)[0].sum(axis=-1)
+
+    def terms(
+        self,
+        grid: OccupancyGrid,
+        poses: np.ndarray,
+        sens: np.ndarray,
+        ranges: np.ndarray,
+        kinds: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(log p(z^k | x, m), blind) per pose and beam (P, M): blind beams run into
+        never-observed space first and carry :func:`unknown_p`."""
         cfg = self.cfg
         res = grid.resolution
         world = compose(poses[:, None, :], sens[None, :, :])  # (P, M, 3)
         z_max = cfg.max_range_m
         t = np.arange(0.5 * res, z_max + 3 * cfg.sigma_hit_m, res)
-        z_star = expected_ranges(grid, self.l_occ, world, t)
+        z_star, u_star = expected_ranges(grid, self.l_occ, world, t)
         z = np.broadcast_to(ranges[None, :], z_star.shape)
         sig = np.hypot(cfg.sigma_hit_m, cfg.sigma_hit_per_m2 * np.nan_to_num(z, nan=z_max) ** 2)
+        clear_k = (kinds == KIND_CLEAR)[None, :]
+        # A beam that runs into never-observed cells before its range (z_max for a clear
+        # reading) or the expected obstacle tells nothing about the pose: uninformative.
+        reach = np.where(clear_k, z_max, np.nan_to_num(z, nan=z_max) - 1.5 * sig)
+        blind = u_star < np.minimum(reach, z_star)
         with np.errstate(invalid="ignore", over="ignore"):
             p_hit = np.where(
                 np.isfinite(z_star),
@@ -94,4 +119,131 @@ class BeamModel:
             cfg.a_max * p_max + cfg.a_rand * p_rand,
             cfg.a_hit * np.nan_to_num(p_hit) + cfg.a_rand * p_rand,
         )
-        return np.log(p).sum(axis=-1)
+        p = np.where(blind, unknown_p(cfg, clear), p)
+        return np.log(p), blind
+
+
+def unknown_p(cfg: AssociationConfig, clear: np.ndarray) -> np.ndarray:
+    """The likelihood of a reading whose beam runs into never-observed space: uniform
+    over the range for a return, an even chance of p_max for a reading that saw nothing
+    (so that looking into unmapped space is neither rewarded nor punished)."""
+    p_rand = 1.0 / cfg.max_range_m
+    return np.where(clear, 0.5 * cfg.a_max + cfg.a_rand * p_rand, p_rand)
+
+
+class FieldBeamModel:
+    """Eq. 7-8 evaluated on a distance field of the map: fast enough for the sample
+    search of the association (hundreds of poses, tens of beams, many rounds).
+
+    The expected range is not ray cast for every sample: the distance from a beam's
+    endpoint to the nearest obstacle stands for |z - z*| in p_hit (exact for a surface
+    square to the beam), and a beam whose ray meets an obstacle more than ``sigma_hit``
+    before its range is occluded (p_hit = 0, as a ray cast z* well short of z gives).
+    A reading that saw nothing (``KIND_CLEAR``) gets p_max when its ray is free of
+    obstacles up to z_max. A beam that runs into never-observed cells first is
+    uninformative (:func:`unknown_p`), as in :class:`BeamModel`. Obstacles are the cells with p > ``occupied_p``; the field is
+    computed once per map (:meth:`set_map`, scipy's Euclidean distance transform).
+    """
+
+    def __init__(self, cfg: AssociationConfig, step_m: float = 0.2) -> None:
+        self.cfg = cfg
+        self.l_occ = logit(cfg.occupied_p)
+        self.step_m = step_m
+        self.dist: np.ndarray | None = None
+        self.known: np.ndarray | None = None
+        self.origin = (0.0, 0.0)
+        self.res = 1.0
+
+    def set_map(
+        self, grid: OccupancyGrid, box: tuple[float, float, float, float] | None = None
+    ) -> None:
+        """The distance field of ``grid``, or of its part inside ``box`` (xmin, ymin,
+        xmax, ymax: where the samples' beams can reach; cheaper on a large map)."""
+        from scipy.ndimage import distance_transform_edt
+
+        self.res = grid.resolution
+        r0, c0 = 0, 0
+        lo = grid.logodds
+        if box is not None:
+            (ra, rb), (ca, cb) = grid.cell_of(
+                np.array([box[0], box[2]]), np.array([box[1], box[3]])
+            )
+            rows, cols = grid.shape
+            r0, r1 = max(0, int(ra)), min(rows, int(rb) + 1)
+            c0, c1 = max(0, int(ca)), min(cols, int(cb) + 1)
+            lo = lo[r0 : max(r1, r0 + 1), c0 : max(c1, c0 + 1)]
+        occ = lo > self.l_occ
+        self.known = lo != 0.0
+        self.origin = (grid.origin[0] + c0 * self.res, grid.origin[1] + r0 * self.res)
+        if not occ.any():
+            self.dist = np.full(occ.shape, np.inf, dtype=np.float32)
+            return
+        self.dist = (distance_transform_edt(~occ) * self.res).astype(np.float32)
+
+    def _lookup(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to the nearest obstacle at world points (inf outside the map), and
+        whether the cell there was ever observed."""
+        assert self.dist is not None and self.known is not None
+        rows, cols = self.dist.shape
+        c = np.floor((x - self.origin[0]) / self.res).astype(np.int64)
+        r = np.floor((y - self.origin[1]) / self.res).astype(np.int64)
+        inside = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
+        out = np.full(x.shape, np.inf, dtype=np.float32)
+        known = np.zeros(x.shape, dtype=bool)
+        out[inside] = self.dist[r[inside], c[inside]]
+        known[inside] = self.known[r[inside], c[inside]]
+        return out, known
+
+    def log_likelihood(
+        self, poses: np.ndarray, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray
+    ) -> np.ndarray:
+        """Sum over beams of log p(z^k | x, m) for each pose (P, 3); beams as in
+        :meth:`BeamModel.log_likelihood` (robot-frame sensor poses, ranges, kinds)."""
+        return self.terms(poses, sens, ranges, kinds)[0].sum(axis=-1)
+
+    def terms(
+        self, poses: np.ndarray, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(log p, blind) per pose and beam (P, M), as :meth:`BeamModel.terms`."""
+        cfg = self.cfg
+        z_max = cfg.max_range_m
+        world = compose(poses[:, None, :], sens[None, :, :])  # (P, M, 3)
+        c, s = np.cos(world[..., 2]), np.sin(world[..., 2])
+        clear = kinds == KIND_CLEAR
+        z = np.where(clear, z_max, np.nan_to_num(ranges, nan=z_max))
+        sig = np.hypot(cfg.sigma_hit_m, cfg.sigma_hit_per_m2 * z**2)
+        d_end, _ = self._lookup(world[..., 0] + c * z, world[..., 1] + s * z)
+        # The ray up to its range less 1.5 sigma (or up to z_max for a clear reading).
+        t = np.arange(self.step_m, z_max + 1e-9, self.step_m)
+        reach = np.where(clear, z_max, z - 1.5 * sig)
+        px = world[..., 0][..., None] + c[..., None] * t
+        py = world[..., 1][..., None] + s[..., None] * t
+        d_ray, known = self._lookup(px, py)
+        on_ray = t[None, None, :] <= reach[None, :, None]
+        wall = d_ray < 0.75 * self.res
+        blocked = np.any(on_ray & wall, axis=-1)  # (P, M)
+        # Blind: the ray meets never-observed space before its range or an obstacle.
+        first_wall = np.where(wall.any(-1), t[np.argmax(wall, axis=-1)], np.inf)
+        unk = on_ray & ~known
+        first_unk = np.where(unk.any(-1), t[np.argmax(unk, axis=-1)], np.inf)
+        blind = first_unk < first_wall
+        with np.errstate(over="ignore"):
+            p_hit = np.exp(-0.5 * (d_end / sig) ** 2) / (sig * math.sqrt(2 * math.pi))
+        p_hit = np.where(blocked, 0.0, p_hit)
+        p_rand = 1.0 / z_max
+        p = np.where(
+            clear[None, :],
+            cfg.a_max * (~blocked) + cfg.a_rand * p_rand,
+            cfg.a_hit * p_hit + cfg.a_rand * p_rand,
+        )
+        p = np.where(blind, unknown_p(cfg, clear[None, :]), p)
+        return np.log(p), blind
+
+
+def pair_ratio(terms: tuple[np.ndarray, np.ndarray], temperature: float) -> tuple[float, int]:
+    """Tempered log-likelihood ratio of pose 0 over pose 1 from their beam ``terms``
+    (2, M), on the beams that see observed space from both poses (a beam that looks into
+    unmapped space from one of them is evidence for neither), and how many beams that is."""
+    lp, blind = terms
+    both = ~blind[0] & ~blind[1]
+    return float(np.sum((lp[0] - lp[1])[both])) / temperature, int(both.sum())

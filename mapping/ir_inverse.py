@@ -35,6 +35,7 @@ import numpy as np
 
 from mapping.grid import OccupancyGrid
 from msgs import IrScan, Pose2D
+from numerics.angles import wrap
 
 KIND_SKIP = -1
 KIND_HIT = 0
@@ -159,7 +160,7 @@ class IrInverseModel:
     """Computes the cells and log-odds increments of a batch of beams (fig. 4 + eq. 6)."""
 
     config: InverseModelConfig = field(default_factory=InverseModelConfig)
-    max_samples_per_call: int = 2_000_000
+    max_samples_per_call: int = 400_000
 
     def half_angles(self, sigma_rad: np.ndarray) -> np.ndarray:
         c = self.config
@@ -181,8 +182,8 @@ class IrInverseModel:
         res = grid.resolution
         h = self.half_angles(beams.sigma_rad)
         reach = self.reach(beams, res)
-        # Grow the grid to hold every cone.
-        ext = reach + res
+        # Grow the grid to hold every cone (its far corners lie reach / cos(h) away).
+        ext = reach / np.cos(h) + 2 * res
         grid.ensure(
             float(np.min(beams.x - ext)),
             float(np.min(beams.y - ext)),
@@ -234,7 +235,7 @@ class IrInverseModel:
         cx, cy = grid.centre_of(row, col)
         vx, vy = cx - beams.x[b], cy - beams.y[b]
         r = np.hypot(vx, vy)
-        alpha = np.abs(np.angle(np.exp(1j * (np.arctan2(vy, vx) - beams.angle[b]))))
+        alpha = np.abs(wrap(np.arctan2(vy, vx) - beams.angle[b]))
         cell_radius = 0.7072 * res
         alpha_eff = np.maximum(
             0.0, alpha - np.arcsin(np.minimum(1.0, cell_radius / np.maximum(r, 1e-9)))
@@ -256,6 +257,24 @@ class IrInverseModel:
         return flat[sel], dl
 
     def integrate(self, grid: OccupancyGrid, beams: Beams) -> int:
-        """Apply the beams to the grid; returns the number of cell updates."""
-        idx, dl = self.updates(grid, beams)
-        return grid.add(idx, dl)
+        """Apply the beams to the grid, a bounded batch at a time (each batch's updates
+        applied before the next is computed, so memory stays bounded); returns the number
+        of cell updates."""
+        if len(beams) == 0:
+            return 0
+        res = grid.resolution
+        reach = self.reach(beams, res)
+        h = self.half_angles(beams.sigma_rad)
+        spacing = 0.7 * res
+        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
+        csum = np.cumsum(per)
+        total, start = 0, 0
+        while start < len(beams):
+            limit = (csum[start - 1] if start else 0.0) + self.max_samples_per_call
+            stop = max(int(np.searchsorted(csum, limit, side="right")), start + 1)
+            sub = Beams(*(getattr(beams, n)[start:stop] for n in
+                          ("x", "y", "angle", "range_m", "kind", "sigma_rad")))  # fmt: skip
+            idx, dl = self.updates(grid, sub)
+            total += grid.add(idx, dl)
+            start = stop
+        return total

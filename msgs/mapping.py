@@ -87,12 +87,15 @@ class OccupancyGridMsg:
 class AssociationReport:
     """What sample-based data association did at one check (ir-grid-mapping eq. 7-8).
 
-    outcome: "accepted" (pose corrected, range data since the last correction
-    re-aligned and re-inserted), "confirmed" (evidence agrees with the uncorrected
-    pose), "weak" (evidence too flat or too unlikely: the uncorrected branch is kept),
-    "worse" (the corrected pose explains the data no better than the uncorrected one:
-    kept). ess_fraction is the effective sample size over the sample count;
-    log_likelihood_ratio compares the corrected and uncorrected poses (nats, tempered).
+    outcome: "accepted" (pose corrected, the range data of the re-insertion window
+    re-aligned and re-inserted), "unconfirmed" (a candidate correction the later scans
+    did not confirm: kept the uncorrected branch), "confirmed" (evidence agrees with the
+    uncorrected pose), "weak" (evidence too flat, or a posterior resting on too few
+    samples: the uncorrected branch is kept), "worse" (the corrected pose explains the
+    window no better than the uncorrected one: kept). ess_fraction is the effective
+    sample size over the sample count of the whole evidence on the prior cloud;
+    log_likelihood_ratio compares the corrected and uncorrected poses on the window (nats,
+    tempered); reason says why, with the held-out test's figures.
     """
 
     stamp_ns: int

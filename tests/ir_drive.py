@@ -84,10 +84,14 @@ def drifted(
     heading_scale: float,
     var_per_rad: float = 0.03**2,
     var_per_m: float = 0.01**2,
+    scale_sigma: float = 0.05,
 ) -> list[HeadingEstimate]:
-    """Heading estimates (with their implied pose) whose turns are scaled by heading_scale."""
+    """Heading estimates (with their implied pose) whose turns are scaled by heading_scale;
+    the variance is an honest filter's (fusion.heading): random growth per radian and per
+    metre, plus a scale error of sigma ``scale_sigma`` on the signed sum of the turns."""
     est = poses[0].astype(float).copy()
     var = (0.5 * D) ** 2
+    turned = 0.0
     out = [HeadingEstimate(0, float(est[2]), var, Pose2D(*map(float, est)))]
     for k in range(1, len(poses)):
         a, b = poses[k - 1], poses[k]
@@ -104,6 +108,8 @@ def drifted(
             ]
         )
         var += var_per_rad * abs(dth) + var_per_m * math.hypot(fx, fy)
+        turned += dth
         th = math.remainder(est[2], 2 * math.pi)
-        out.append(HeadingEstimate(k * 100_000_000, th, var, Pose2D(est[0], est[1], th)))
+        v = var + (scale_sigma * turned) ** 2
+        out.append(HeadingEstimate(k * 100_000_000, th, v, Pose2D(est[0], est[1], th)))
     return out

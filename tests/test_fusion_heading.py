@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -39,8 +40,9 @@ def test_one_step_matches_eq_1_to_4():
     f = HeadingFilter(p)
     dd, de, dg = 0.5, 0.20, 0.18
     f.step(dd, de, dg, 0.1)
-    sw2 = (p.alpha_rad_per_m * dd) ** 2 + (p.beta * de) ** 2
-    sg2 = (p.gamma * dg) ** 2
+    # Per distance and per turn (independent of the step rate), not per step squared:
+    sw2 = p.alpha_rad_per_m**2 * dd + p.beta**2 * de
+    sg2 = p.gamma**2 * dg
     k = sw2 / (sw2 + sg2)
     u = de + k * (dg - de)
     assert f.theta == pytest.approx(u, abs=1e-12)
@@ -49,7 +51,8 @@ def test_one_step_matches_eq_1_to_4():
     # The literal reading of eq. (1)-(3): gain on the whole prior, variance collapses.
     g = HeadingFilter(HeadingParams(model="paper"))
     g.step(dd, de, dg, 0.1)
-    prior = (0.1 * DEG) ** 2 + sw2
+    prior = (0.1 * DEG) ** 2 + (p.alpha_rad_per_m * dd) ** 2 + (p.beta * de) ** 2
+    sg2 = (p.gamma * dg) ** 2
     kp = prior / (prior + sg2)
     assert g.theta == pytest.approx(de + kp * (dg - de), abs=1e-12)
     assert g.variance == pytest.approx(prior * (1 - kp), rel=1e-9)
@@ -190,39 +193,111 @@ def test_reset_restarts_at_the_given_pose():
     assert f.feed(odo(200, 3.0, 0, 0.5)).pose.x == 5.0  # new baseline after a reset
 
 
-def _nees_runs(params: HeadingParams, runs: int, steps: int, seed: int) -> np.ndarray:
-    """NEES per (run, step) on heading runs drawn from the eq. (4) noise model itself."""
+SYSTEMATIC = HeadingParams(
+    encoder_bias_sigma_rad_per_m=2 * DEG, track_scale_sigma=0.02, gyro_scale_sigma=0.005
+)
+# Little random error: the systematic terms dominate.
+QUIET = replace(SYSTEMATIC, alpha_rad_per_m=0.5 * DEG, beta=0.02)
+
+
+def _nees_runs(
+    params: HeadingParams, runs: int, steps: int, seed: int, gyro: bool = True,
+    truth_params: HeadingParams | None = None,
+) -> np.ndarray:  # fmt: skip
+    """NEES per (run, step) on heading runs drawn from the filter's own noise model
+    (``truth_params``, default ``params``): random growth per distance and per turn, and
+    systematic errors drawn once per run from their priors."""
+    tp = truth_params or params
     rng = np.random.default_rng(seed)
     out = np.empty((runs, steps))
     for m in range(runs):
         f = HeadingFilter(params)
         truth = rng.normal(0.0, params.initial_sigma_rad)  # the filter starts at 0
+        c_d = rng.normal(tp.encoder_bias_rad_per_m, tp.encoder_bias_sigma_rad_per_m)
+        c_t = rng.normal(0.0, tp.track_scale_sigma)
+        c_g = rng.normal(0.0, tp.gyro_scale_sigma)
         for k in range(steps):
             dd = rng.uniform(0.0, 0.05)
             dth = rng.normal(0.0, 0.05)
-            sw = math.hypot(params.alpha_rad_per_m * dd, params.beta * dth)
-            sg = params.gamma * abs(dth)
-            de = dth + rng.normal(0.0, sw)
-            dg = dth + rng.normal(0.0, sg) if sg > 0 else dth
+            sw = math.sqrt(tp.alpha_rad_per_m**2 * dd + tp.beta**2 * abs(dth))
+            de = (dth - c_d * dd + rng.normal(0.0, sw)) / (1.0 + c_t)
+            dg = dth * (1.0 + c_g) + rng.normal(0.0, tp.gamma * math.sqrt(abs(dth)))
             truth += dth
-            f.step(dd, de, dg, 0.1)
+            f.step(dd, de, dg if gyro else None, 0.1)
             e = wrap_angle(f.theta - truth)
             out[m, k] = e * e / f.variance
     return out
 
 
-def test_heading_nees_inside_95_band_over_seeded_runs():
-    # gamma's variance uses the measured dtheta_gyro while the simulation uses the true one;
-    # the difference is second order and well inside the band.
+@pytest.mark.parametrize("params", [HeadingParams(), SYSTEMATIC], ids=["random", "systematic"])
+def test_heading_nees_inside_95_band_over_seeded_runs(params):
     runs, steps = 60, 150
-    nees = _nees_runs(HeadingParams(), runs, steps, seed=3)
+    nees = _nees_runs(params, runs, steps, seed=3)
     lo, hi = chi2.ppf(0.025, runs) / runs, chi2.ppf(0.975, runs) / runs
     avg = nees.mean(axis=0)  # average over runs at each step
     assert lo <= avg.mean() <= hi
     assert np.mean((avg >= lo) & (avg <= hi)) >= 0.85
-    # The literal eq. (1)-(3) is over-confident on the very same data: far out of band.
-    literal = _nees_runs(HeadingParams(model="paper"), runs, steps, seed=3).mean(axis=0)
+    # The literal eq. (1)-(4) is over-confident on the very same data: far out of band.
+    paper = HeadingParams(model="paper")
+    literal = _nees_runs(paper, runs, steps, seed=3, truth_params=params).mean(axis=0)
     assert literal.mean() > 10 * hi
+
+
+def test_encoder_only_with_a_wheel_bias_stays_consistent_and_says_when_it_is_lost():
+    runs, steps = 60, 400  # ~10 m each, no gyro: the systematic prior is all there is
+    nees = _nees_runs(QUIET, runs, steps, seed=5, gyro=False).mean(axis=0)
+    lo, hi = chi2.ppf(0.005, runs) / runs, chi2.ppf(0.995, runs) / runs
+    assert lo <= nees[-1] <= hi and lo <= nees.mean() <= hi
+    # Without the systematic terms the same runs are over-confident by far at the end.
+    random_only = replace(QUIET, encoder_bias_sigma_rad_per_m=0.0, track_scale_sigma=0.0)
+    naive = _nees_runs(random_only, runs, steps, seed=5, gyro=False, truth_params=QUIET)
+    assert naive.mean(axis=0)[-1] > 3 * hi
+    # 3 sigma grows with the distance: past 90 deg the filter says the heading is lost.
+    f = HeadingFilter(SYSTEMATIC)
+    while not f.lost:
+        f.step(0.1, 0.0, None, 0.1)
+    assert 3 * math.sqrt(f.variance) >= math.pi / 2 and f.counters()["heading_lost"]
+    assert f.counters()["lost_steps"] == 1 and f.x > 10.0
+
+
+@pytest.mark.parametrize("params", [HeadingParams(), SYSTEMATIC], ids=["random", "systematic"])
+@pytest.mark.parametrize("gyro", [True, False], ids=["fused", "encoder"])
+def test_heading_variance_does_not_depend_on_the_step_rate(params, gyro):
+    """The same 20 m arc (0.5 rad/m) cut into 20, 200 and 2000 steps: the same variance."""
+    finals = []
+    for n in (20, 200, 2000):
+        f = HeadingFilter(params)
+        dd, dth = 20.0 / n, 10.0 / n
+        for _ in range(n):
+            f.step(dd, dth, dth if gyro else None, 40.0 / n)
+        finals.append(f.variance)
+    assert finals[0] > 10 * params.initial_sigma_rad**2
+    assert finals == pytest.approx([finals[0]] * 3, rel=0.02)
+    # The per-step reading of eq. (4) does depend on it: 100 times the steps, a 100th.
+    paper = []
+    for n in (20, 2000):
+        f = HeadingFilter(HeadingParams(model="paper"))
+        for _ in range(n):
+            f.step(20.0 / n, 10.0 / n, None, 40.0 / n)
+        paper.append(f.variance)
+    assert paper[0] > 50 * paper[1]
+
+
+def test_the_gyro_learns_the_wheel_bias():
+    f = HeadingFilter(QUIET)
+    rng = np.random.default_rng(2)
+    bias = 3.0 * DEG  # rad per metre, the Intel robot's
+    for _ in range(500):  # 25 m straight, with small wiggles
+        dth = rng.normal(0.0, 0.02)
+        f.step(0.05, dth - bias * 0.05, dth, 0.1)
+    c_d = f.systematic["encoder_bias_rad_per_m"]  # the correction the encoders need
+    assert c_d == pytest.approx(bias, rel=0.1)
+    assert f.systematic["encoder_bias_sigma_rad_per_m"] < 0.3 * QUIET.encoder_bias_sigma_rad_per_m
+    # Then, with the gyro gone, the learnt bias corrects the encoders.
+    th0 = f.theta
+    for _ in range(100):
+        f.step(0.05, -bias * 0.05, None, 0.1)
+    assert abs(wrap_angle(f.theta - th0)) < 0.2 * bias * 5.0
 
 
 def test_fused_heading_beats_encoder_on_the_fakes_models():

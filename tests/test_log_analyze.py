@@ -143,10 +143,14 @@ def test_digest_has_the_figures_of_the_summary(synth: tuple[Path, dict]) -> None
     lines = digest(a)
     pose = s["paths"]["pose"]["position_error_m"]
     assert lines[0].startswith(f"  r1 pose     path error mean {pose['mean']:.3f} m")
-    assert [line.split()[1] for line in lines] == ["pose", "heading", "odometry", "map", "CP"]
+    kinds = ["pose", "heading", "odometry", "map", "map", "heading", "CP"]
+    assert [line.split()[1] for line in lines] == kinds
     assert f"match ratio {exp['match_ratio']:.3f} against the office plan" in lines[3]
+    prec = s["map"]["scores"]["occupied_precision"]
+    assert f"occupied precision {prec:.3f}" in lines[4] and "against the plan" in lines[4]
+    assert f"NEES mean {s['heading_consistency']['mean_nees']:.2f}" in lines[5]
     frac = 100 * s["cp_boxes"]["contained_fraction"]
-    assert lines[4] == f"  r1 CP boxes contain the truth {frac:.1f} % (median area 0.2 m2)"
+    assert lines[6] == f"  r1 CP boxes contain the truth {frac:.1f} % (median area 0.2 m2)"
 
 
 def test_cli_missing_file_is_a_clear_error(tmp_path: Path) -> None:

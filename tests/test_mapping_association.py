@@ -53,12 +53,14 @@ def test_association_improves_a_drifted_run():
     da = _with_da(est, scans)
     with_da = compare(da.grid, PLAN).match_ratio
     assert _pos_err(est[-1].pose, truth[-1]) > 0.5  # the drift is real
-    assert with_da > plain + 0.03
-    assert _pos_err(da.pose, truth[-1]) < 0.5 * _pos_err(est[-1].pose, truth[-1])
+    assert with_da > plain + 0.01
+    assert _pos_err(da.pose, truth[-1]) < 0.75 * _pos_err(est[-1].pose, truth[-1])
     counts = da.outcome_counts()
     assert counts["accepted"] >= 1
     accepted = [r for r in da.reports if r.outcome == "accepted"]
-    assert all(r.realigned_scans > 0 and r.log_likelihood_ratio > 0 for r in accepted)
+    cfg = da.config
+    assert all(r.realigned_scans > 0 and r.log_likelihood_ratio >= cfg.lr_min for r in accepted)
+    assert all(r.ess_fraction <= cfg.ess_max and "held-out LR" in r.reason for r in accepted)
     # The corrected trajectory is closer to the truth than the drifted one, on average.
     traj = da.trajectory
     drift = np.array([[h.pose.x, h.pose.y] for h in est])
@@ -75,7 +77,7 @@ def test_association_leaves_an_undrifted_run_unharmed():
     assert _pos_err(da.pose, truth[-1]) < 0.05
     assert len(da.reports) >= 5  # the loop was closed and checked...
     for r in da.reports:  # ...and every kept branch says why
-        assert r.outcome in ("accepted", "confirmed", "weak", "worse")
+        assert r.outcome in ("accepted", "unconfirmed", "confirmed", "weak", "worse")
         if r.outcome != "accepted":
             assert r.reason and r.realigned_scans == 0
 

@@ -41,3 +41,21 @@ class GyroErrorModel:
         self.bias_radps += float(self._rng.normal(0.0, self.bias_walk_radps_rts * math.sqrt(dt)))
         white = float(self._rng.normal(0.0, self.noise_density_radps_rthz / math.sqrt(dt)))
         return self.scale * true_rate_radps + self.bias_radps + white
+
+
+def gyro_from_heading(
+    t_s: np.ndarray, heading_rad: np.ndarray, model: GyroErrorModel, rate_hz: float = 100.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A gyro emulated on a recorded heading (a data set's reference poses): samples every
+    1 / ``rate_hz`` s over ``t_s``, the true rate being the slope of the (unwrapped)
+    heading interpolated linearly, through ``model``'s errors. Returns (times s, measured
+    rates rad/s, integrated angle rad: the device's own integration, from 0)."""
+    t_s = np.asarray(t_s, dtype=float)
+    if len(t_s) < 2 or not rate_hz > 0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    dt = 1.0 / rate_hz
+    tg = t_s[0] + dt * np.arange(1, int((t_s[-1] - t_s[0]) / dt) + 1)
+    th = np.interp(np.concatenate([[t_s[0]], tg]), t_s, np.unwrap(heading_rad))
+    true_rate = np.diff(th) / dt
+    rates = np.array([model.sample(float(w), dt) for w in true_rate])
+    return tg, rates, np.cumsum(rates) * dt

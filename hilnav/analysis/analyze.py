@@ -5,7 +5,9 @@ Per robot (topics ``/<robot>/<kind>``, read by tracks.py), against the reference
 or, without truth, the GPS east/north fixes (position only):
 
 - path error and heading drift per metre of every pose source (errors.py);
-- map match ratio of the last map against the floor plan (maps.py);
+- the last map against the floor plan or the log's reference map (maps.py);
+- the heading filter's NEES against a reference heading (consistency.py), and what the
+  data association did and why;
 - CP box containment and areas, EKF 3-sigma containment (containment.py);
 - diagnostics summary per device (last counters, bad frames, reconnects, errors);
 - landmark maps and the robot's info, when logged.
@@ -20,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hilnav.analysis.consistency import heading_consistency
 from hilnav.analysis.containment import box_series, box_summary, ekf_containment
 from hilnav.analysis.errors import SourceErrors, source_errors, source_track
 from hilnav.analysis.geometry import path_length
@@ -27,6 +30,7 @@ from hilnav.analysis.gps_error import WINDOW_S, gps_inliers, travelled_from_spee
 from hilnav.analysis.maps import map_summary
 from hilnav.analysis.result import (
     Analysis,
+    AssociationSummary,
     DeviceSummary,
     GpsFixes,
     LandmarkSummary,
@@ -89,7 +93,24 @@ def gps_keep(rl: RobotLog) -> tuple[np.ndarray, str | None]:
     return gps_inliers(t, x, y, travel_t, travel, window=WINDOW_S * NS), source
 
 
-def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
+def association_summary(rl: RobotLog) -> AssociationSummary | None:
+    """The association's checks by outcome, and their reasons (numbers stripped)."""
+    if not rl.associations:
+        return None
+    import re
+    from collections import Counter
+
+    outcomes = Counter(r.outcome for r in rl.associations)
+    reasons = Counter(
+        f"{r.outcome}: " + re.sub(r"-?\d+(\.\d+)?", "#", r.reason) for r in rl.associations
+    )
+    return AssociationSummary(len(rl.associations), dict(sorted(outcomes.items())),
+                              dict(sorted(reasons.items())))  # fmt: skip
+
+
+def analyze_robot(
+    rl: RobotLog, plan_name: str | None, meta: dict[str, str] | None = None
+) -> RobotAnalysis:
     """Every figure the robot's messages allow (see the module docstring)."""
     ref, ref_name, ref_heading = reference_of(rl)
     keep, fixes = None, None
@@ -112,7 +133,8 @@ def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
         series=RobotSeries(rl, errs, bs, keep),
         paths={name: source_track(name, e, ref_heading) for name, e in errs.items()},
         cp_boxes=box_summary(bs) if bs is not None else None,
-        map=map_summary(rl, plan_name),
+        map=map_summary(rl, plan_name, meta),
+        association=association_summary(rl),
         diagnostics=diagnostics_summary(rl.diagnostics),
         info=rl.info,
     )
@@ -122,6 +144,8 @@ def analyze_robot(rl: RobotLog, plan_name: str | None) -> RobotAnalysis:
     if len(ref) >= 2:
         _, rx, ry, _ = ref.arrays()
         ra.reference_distance_m = float(path_length(rx, ry)[-1])
+    if ref_name == "truth" and "heading" in rl.sources:
+        ra.heading_consistency = heading_consistency(rl.sources["heading"], ref)
     if ref_name == "truth":
         for name, tr in sorted(rl.sources.items()):
             c = ekf_containment(tr, ref)
@@ -144,7 +168,7 @@ def analyze(path: str | Path, plan: str | None = None) -> Analysis:
         log=str(path),
         metadata=dict(sorted(meta.items())),
         read=stats,
-        robots={name: analyze_robot(robots[name], plan_name) for name in sorted(robots)},
+        robots={name: analyze_robot(robots[name], plan_name, meta) for name in sorted(robots)},
         plan_name=plan_name,
     )
     all_t = [

@@ -29,6 +29,8 @@ def ekf_containment(track: Track, ref: Track, sigmas: float = 3.0) -> EkfContain
     t = t[order]
     x, y, th = (np.asarray(a)[order] for a in (track.x, track.y, track.theta))
     var = np.asarray(track.var, dtype=float)[order]
+    if not np.isfinite(var).all():
+        return None  # a heading estimate: no position variance (consistency.py judges it)
     rt, rx, ry, rth = ref.arrays()
     qx, qy, qth, ok = interp_pose(rt, rx, ry, rth, t)
     ok &= ref.covered(t)

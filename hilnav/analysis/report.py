@@ -95,6 +95,9 @@ def _map(m: MapSummary) -> JsonDict:
         out["plan"] = m.plan
         out.update({f"quality_{k}": v for k, v in m.quality.as_dict().items()})
         out["match_ratio"] = m.quality.match_ratio
+    if m.scores is not None:
+        out["scored_against"] = m.scored_against
+        out["scores"] = m.scores.as_dict()
     return out
 
 
@@ -117,6 +120,10 @@ def _robot(ra: RobotAnalysis) -> JsonDict:
         out["cp_boxes"] = _boxes(ra.cp_boxes)
     if ra.map is not None:
         out["map"] = _map(ra.map)
+    if ra.heading_consistency is not None:
+        out["heading_consistency"] = asdict(ra.heading_consistency)
+    if ra.association is not None:
+        out["association"] = asdict(ra.association)
     if ra.landmarks is not None:
         out["landmarks"] = {"maps_logged": ra.landmarks.maps_logged, "count": ra.landmarks.count}
     if ra.diagnostics:
@@ -185,6 +192,21 @@ def digest(analysis: Analysis) -> list[str]:
             lines.append(
                 f"  {robot} map      match ratio {ra.map.match_ratio:.3f} "
                 f"against the {ra.map.plan} plan"
+            )
+        sc = ra.map.scores if ra.map is not None else None
+        if sc is not None:
+            lines.append(
+                f"  {robot} map      occupied precision {sc.occupied_precision:.3f}, recall "
+                f"{sc.occupied_recall:.3f} (within {sc.tolerance_cells} cells), alignment "
+                f"{sc.alignment:.3f} against the {ra.map.scored_against}"  # type: ignore[union-attr]
+            )
+        hc = ra.heading_consistency
+        if hc is not None:
+            lost = "; the filter says the heading is LOST" if hc.lost else ""
+            lines.append(
+                f"  {robot} heading  NEES mean {hc.mean_nees:.2f} ({100 * hc.within_99_fraction:.0f} % "
+                f"within chi2 99 %), final sigma {hc.final_sigma_deg:.1f} deg, error "
+                f"{hc.final_error_deg:.1f} deg{lost}"
             )
         box = ra.cp_boxes
         if box is not None and box.containment is not None:

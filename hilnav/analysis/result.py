@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from hilnav.analysis.errors import SourceErrors
     from hilnav.analysis.tracks import RobotLog
     from hilnav.log.reader import ReadStats
+    from mapping.map_scores import MapScore
     from mapping.quality import MapQuality
     from msgs import RobotInfo
 
@@ -122,6 +123,8 @@ class MapSummary:
     plan: str | None = None
     plan_error: str | None = None  # the plan named could not be loaded
     quality: MapQuality | None = None
+    scores: MapScore | None = None  # against the plan or the log's reference map
+    scored_against: str | None = None  # "plan" or "reference_map"
 
     @property
     def match_ratio(self) -> float | None:
@@ -135,6 +138,28 @@ class TruthGaps:
     count: int
     total_s: float
     longest_s: float
+
+
+@dataclass(frozen=True)
+class HeadingConsistency:
+    """The heading filter's variance against the reference heading (NEES)."""
+
+    samples: int
+    mean_nees: float  # 1 for a consistent filter
+    within_99_fraction: float  # NEES <= chi2(1) 99 %: about 0.99 when consistent
+    final_sigma_deg: float
+    final_error_deg: float
+    max_error_deg: float
+    lost: bool  # 3 sigma >= 90 deg at the end: the filter says its heading is lost
+
+
+@dataclass(frozen=True)
+class AssociationSummary:
+    """What the data association did: checks by outcome, and the reasons given."""
+
+    checks: int
+    outcomes: dict[str, int]
+    reasons: dict[str, int]  # reason (numbers stripped) -> count
 
 
 @dataclass(frozen=True)
@@ -197,6 +222,8 @@ class RobotAnalysis:
     ekf_3sigma: dict[str, EkfContainment] = field(default_factory=dict)
     cp_boxes: BoxSummary | None = None
     map: MapSummary | None = None
+    heading_consistency: HeadingConsistency | None = None
+    association: AssociationSummary | None = None
     landmarks: LandmarkSummary | None = None
     diagnostics: dict[str, DeviceSummary] = field(default_factory=dict)
     info: RobotInfo | None = None

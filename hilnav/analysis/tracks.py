@@ -23,11 +23,13 @@ import numpy as np
 from hilnav.log.reader import ReadStats, decode_record, iter_raw, message_types
 from hilnav.topics import split_log_topic
 from msgs import (
+    AssociationReport,
     DeviceDiagnostics,
     GpsFix,
     GroundTruth,
     GyroSample,
     HeadingEstimate,
+    IrScan,
     OccupancyGridMsg,
     PoseBox,
     PoseEstimate,
@@ -96,6 +98,9 @@ class RobotLog:
     boxes: list[tuple[int, PoseBox]] = field(default_factory=list)
     last_map: OccupancyGridMsg | None = None
     maps: int = 0
+    reference_map: OccupancyGridMsg | None = None  # a data set's map at its reference poses
+    ir: list[IrScan] = field(default_factory=list)
+    associations: list[AssociationReport] = field(default_factory=list)
     diagnostics: dict[str, list[DeviceDiagnostics]] = field(default_factory=dict)
     info: RobotInfo | None = None
     landmarks: Any = None  # the last landmark map (msgs.landmarks.LandmarkMap: xs, ys)
@@ -129,7 +134,8 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
             var = (c[0], c[4], c[8]) if len(c) == 9 else None
             rl.sources.setdefault(kind, Track()).add(t, msg.pose.x, msg.pose.y, msg.pose.theta, var)
         elif isinstance(msg, HeadingEstimate):
-            rl.sources.setdefault(kind, Track()).add(t, msg.pose.x, msg.pose.y, msg.theta_rad)
+            var = (math.nan, math.nan, msg.variance_rad2)
+            rl.sources.setdefault(kind, Track()).add(t, msg.pose.x, msg.pose.y, msg.theta_rad, var)
         elif isinstance(msg, RobotOdometry):
             rl.sources.setdefault("odometry", Track()).add(
                 t, msg.pose.x, msg.pose.y, msg.pose.theta
@@ -145,9 +151,15 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
             rl.speeds.append((t, msg.linear_mps))
         elif isinstance(msg, PoseBox):
             rl.boxes.append((t, msg))
+        elif isinstance(msg, OccupancyGridMsg) and kind == "reference_map":
+            rl.reference_map = msg
         elif isinstance(msg, OccupancyGridMsg):
             rl.last_map = msg
             rl.maps += 1
+        elif isinstance(msg, IrScan):
+            rl.ir.append(msg)
+        elif isinstance(msg, AssociationReport):
+            rl.associations.append(msg)
         elif isinstance(msg, DeviceDiagnostics):
             rl.diagnostics.setdefault(msg.device, []).append(msg)
         elif isinstance(msg, RobotInfo):

@@ -12,9 +12,10 @@ from hilnav.errors import CliError
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "analyze",
-        help="analyse a log: path error, heading drift, map match ratio, CP boxes; PNGs + JSON",
+        help="analyse a log: path error, heading drift and NEES, map scores, CP boxes; PNGs + JSON",
         description="Compute what the log allows (path error against the truth or GPS, "
-        "heading drift per metre, map match ratio against the floor plan named in the log, CP "
+        "heading drift per metre and the heading filter's NEES, the map's scores against the "
+        "floor plan named in the log or the log's reference map, the association's checks, CP "
         "box containment and areas, diagnostics), write PNG plots and summary.json to DIR, "
         "and print a digest (with --json: the JSON summary).",
     )

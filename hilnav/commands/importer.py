@@ -1,4 +1,5 @@
-"""``hilnav import victoria-park|mrclam DIR OUT.mcap``: public data sets as hilnav logs."""
+"""``hilnav import victoria-park|mrclam DIR OUT.mcap``, ``hilnav import carmen FILE
+OUT.mcap``: public data sets as hilnav logs."""
 
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     mr.add_argument("--robots", help="robot numbers to import, e.g. 1,2 (default: all)")
     add_compression(mr)
     mr.set_defaults(func=run_mrclam)
+    _register_carmen(isub)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
@@ -104,5 +106,84 @@ def run_mrclam(args: argparse.Namespace) -> int:
     d = rep.as_dict()
     total = sum(d["messages"].values())
     print(f"imported {total} messages of {', '.join(rep.robots)} ({d['duration_s']} s) into {out}")
+    print(json.dumps(d, sort_keys=True))
+    return 0
+
+
+def _register_carmen(isub: argparse._SubParsersAction) -> None:
+    c = isub.add_parser(
+        "carmen",
+        help="a laser log (CARMEN text or scan .mat) with IR sensors emulated at the mounts",
+        description="Write a real robot's laser log as an MCAP log for replay and analyze: "
+        "/<robot>/odometry, /<robot>/ir (the laser's beams at the IR mounts, Sharp limits "
+        "1-5.5 m), /<robot>/truth and /<robot>/reference_map (corrected poses, when the log "
+        "or --reference has them), /<robot>/gyro (with --gyro-seed). FILE: a CARMEN log "
+        "(ODOM, FLASER, ROBOTLASER1, RAWLASER1, TRUEPOS lines) or a .mat of scans "
+        "(beam_data, odom, timestamp).",
+    )
+    c.add_argument("file", help="CARMEN log or scan .mat file")
+    c.add_argument("out", help="MCAP log to write")
+    c.add_argument("--robot", default="intel", help="robot name in the topics (default intel)")
+    c.add_argument("--reference", help="a corrected CARMEN log of the same run (its keyframes "
+                   "give the reference poses, matched by their range vectors)")  # fmt: skip
+    c.add_argument(
+        "--ir-mounts",
+        help='IR mounts "x,y,yaw_deg;x,y,yaw_deg;..." in the robot frame (default: the '
+        "config's geometry.ir_mounts)",
+    )
+    c.add_argument("--ir-noise-seed", type=int, help="Sharp noise model (fakes), seeded")
+    c.add_argument("--gyro-seed", type=int, help="emulate a gyro on the reference heading")
+    c.add_argument("--scans", type=int, help="only the first N scans")
+    c.add_argument(
+        "--poses",
+        default="auto",
+        choices=("auto", "corrected", "odometry"),
+        help="what the laser lines' poses are (auto: corrected when they part from ODOM)",
+    )
+    add_compression(c)
+    c.set_defaults(func=run_carmen)
+
+
+def parse_mounts(text: str) -> list[tuple[float, float, float]]:
+    """``"x,y,yaw_deg;..."`` -> [(x, y, yaw_rad), ...]; CliError names a bad entry."""
+    import math
+
+    out = []
+    for part in text.replace(" ", "").split(";"):
+        if not part:
+            continue
+        try:
+            x, y, yaw = (float(v) for v in part.split(","))
+        except ValueError:
+            raise CliError(f"--ir-mounts: {part!r} is not x,y,yaw_deg") from None
+        if not all(math.isfinite(v) for v in (x, y, yaw)):
+            raise CliError(f"--ir-mounts: {part!r} is not finite")
+        out.append((x, y, math.radians(yaw)))
+    if not 1 <= len(out) <= 8:
+        raise CliError(f"--ir-mounts: give 1 to 8 mounts, got {len(out)}")
+    return out
+
+
+def run_carmen(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from hilnav.importers.carmen import import_carmen
+
+    if args.scans is not None and args.scans < 2:
+        raise CliError("--scans must be >= 2")
+    out = Path(args.out)
+    if out.parent and not out.parent.exists():
+        raise CliError(f"output folder does not exist: {out.parent}")
+    mounts = np.array(parse_mounts(args.ir_mounts)) if args.ir_mounts else None
+    try:
+        rep = import_carmen(
+            args.file, out, robot=args.robot, reference=args.reference, mounts=mounts,
+            ir_noise_seed=args.ir_noise_seed, gyro_seed=args.gyro_seed, scans=args.scans,
+            poses=args.poses, compression=args.compression,
+        )  # fmt: skip
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    d = rep.as_dict()
+    print(f"imported {sum(rep.counts.values())} messages ({d['duration_s']} s) into {out}")
     print(json.dumps(d, sort_keys=True))
     return 0

@@ -32,6 +32,10 @@ def _positive(eg: str) -> dict[str, Any]:
     return _check(lambda v: v > 0, f"must be > 0 (e.g. {eg})")
 
 
+def _non_negative(eg: str) -> dict[str, Any]:
+    return _check(lambda v: v >= 0, f"must be >= 0 (e.g. {eg}; 0 = none)")
+
+
 def _choice(*options: Any) -> dict[str, Any]:
     return _check(lambda v: v in options, "must be one of " + ", ".join(map(repr, options)))
 
@@ -158,6 +162,12 @@ class Noise:
     gyro_gamma: float = field(default=0.02, metadata=_positive("0.02"))
     gyro_arw_rad_per_sqrt_s: float = field(default=0.00026, metadata=_positive("0.00026"))
     wheel_noise_m_per_sqrt_m: float = field(default=0.005, metadata=_positive("0.005"))
+    encoder_bias_sigma_rad_per_m: float = field(default=0.03, metadata=_non_negative("0.03"))
+    encoder_bias_rad_per_m: float = 0.0
+    track_scale_sigma: float = field(default=0.02, metadata=_non_negative("0.02"))
+    gyro_scale_sigma: float = field(default=0.005, metadata=_non_negative("0.005"))
+    gyro_bias_sigma_radps: float = field(default=0.0017, metadata=_non_negative("0.0017"))
+    gyro_bias_walk_radps_per_sqrt_s: float = field(default=3.5e-5, metadata=_non_negative("3.5e-5"))
     gps_uere_m: float = field(default=4.0, metadata=_positive("4.0"))
 
 

@@ -18,12 +18,11 @@ ground truth exists: ``hilnav analyze`` uses the GPS fixes as the reference.
 from __future__ import annotations
 
 import heapq
-from collections import Counter
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hilnav.importers.report import ImportReport
 from hilnav.log.writer import LogWriter
 
 CONTROL_TOPIC = "control"
@@ -35,29 +34,6 @@ GEOMETRY = {
     "laser_a_m": "0.95",
     "laser_b_m": "0.5",
 }
-
-
-@dataclass
-class ImportReport:
-    source: str
-    output: str
-    robot: str
-    counts: Counter = field(default_factory=Counter)
-    detections: int = 0
-    first_ns: int = 0
-    last_ns: int = 0
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "source": self.source,
-            "output": self.output,
-            "robot": self.robot,
-            "messages": dict(sorted(self.counts.items())),
-            "detections": self.detections,
-            "first_ns": self.first_ns,
-            "last_ns": self.last_ns,
-            "duration_s": round((self.last_ns - self.first_ns) / 1e9, 3),
-        }
 
 
 def _stream(topic: str, order: int, items: Iterator[Any]) -> Iterator[tuple[int, int, str, Any]]:

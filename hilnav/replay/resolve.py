@@ -69,10 +69,12 @@ def choose_pipeline(
     through hilnav.replay.velocity_robot, together (hilnav.replay.multi_robot); "auto":
     velocity for an MRCLAM log (its metadata says so, or the robot has velocity odometry
     and no Pioneer odometry), landmark-slam for another data set or a robot with controls
-    or landmark scans and no odometry, else daemon."""
+    or landmark scans and no odometry, else daemon. The metadata's ``pipeline``, when it names one, comes first."""
     if name not in PIPELINES:
         raise ValueError(f"pipeline {name!r}: choose one of {', '.join(PIPELINES)}")
     kinds: dict[str, set[str]] | None = None
+    if name == "auto" and meta.get("pipeline") in PIPELINES[1:]:
+        name = meta["pipeline"]  # the importer says which
     if name == "auto":
         name = "daemon"
         dataset = meta.get("dataset")
