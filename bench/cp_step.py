@@ -38,6 +38,7 @@ if __package__ in (None, ""):
 
 import localization.cp_scalar as cps
 import localization.cp_window as cpw
+import localization.interval_scalar as isc
 from fakes.world.paper_scenario import simulate
 from hilnav.fleet.paper import PaperRobot
 from localization.contractors import contract_range_bearing
@@ -69,7 +70,7 @@ def contraction_us(n: int, seed: int) -> tuple[float, float]:
     for c in cases:
         try:
             cps.contract_range_bearing(*c)
-        except cps.Fallback:
+        except isc.Fallback:
             pass
     t2 = time.process_time()
     return (t1 - t0) / n * 1e6, (t2 - t1) / n * 1e6

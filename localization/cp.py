@@ -45,7 +45,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from localization import cp_scalar as cps
+from localization import interval_scalar as isc
 from localization.cp_config import CPConfig
 from localization.cp_window import SlidingWindowCP
 from localization.interval import IV, align_angle
@@ -116,7 +116,7 @@ class CPLocalizer(SlidingWindowCP):
         if math.isfinite(tl) and math.isfinite(th_):  # align_angle(th, 0.0) on floats
             k = float(round((0.0 - (0.5 * tl + 0.5 * th_)) / TWO_PI))
             if k != 0.0:
-                tl, th_ = cps.add((tl, th_), cps.mul((k, k), (TWO_PI, _TWO_PI_HI)))
+                tl, th_ = isc.add((tl, th_), isc.mul((k, k), (TWO_PI, _TWO_PI_HI)))
         return PoseBox(
             stamp_ns=int(self._w.stamps[-1]),
             robot=self.robot,
@@ -238,16 +238,16 @@ class CPLocalizer(SlidingWindowCP):
             dt_own = abs(m.stamp_ns - now) * 1e-9
             grow = c.speed_bound_mps * (abs(m.stamp_ns - p.stamp_ns) * 1e-9 + dt_own)
             rho = _around(m.range_m, m.range_bound_m)
-            beta = cps.inflate(
+            beta = isc.inflate(
                 _around(m.bearing_rad, m.bearing_bound_rad), c.yaw_rate_bound_radps * dt_own
             )
-            px = cps.inflate((p.x.lo, p.x.hi), grow)
-            py = cps.inflate((p.y.lo, p.y.hi), grow)
+            px = isc.inflate((p.x.lo, p.x.hi), grow)
+            py = isc.inflate((p.y.lo, p.y.hi), grow)
             peers.append((px, py, rho, beta))
         return bool(self.relative_f(now, peers))
 
 
-def _around(mid: float, rad: float) -> cps.Iv:
+def _around(mid: float, rad: float) -> isc.Iv:
     """``IV.around`` for one interval."""
     r = abs(rad)
     return math.nextafter(mid - r, -math.inf), math.nextafter(mid + r, math.inf)

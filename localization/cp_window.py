@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from localization import cp_scalar as cps
+from localization import interval_scalar as isc
 from localization.contractors import contract_range_bearing, fixpoint, odometry_displacement
 from localization.cp_config import CPConfig
 from localization.cp_solve import WindowArrays, solve_window
@@ -140,7 +141,7 @@ class SlidingWindowCP(MessageIntake):
         self._pred = pred
         self._dirty = self._soft = True
 
-    def _predict_f(self, r: cps.Iv, l: cps.Iv) -> tuple[IV, IV, IV] | None:
+    def _predict_f(self, r: isc.Iv, l: isc.Iv) -> tuple[IV, IV, IV] | None:
         """The one-step prediction of :meth:`step` (eq. (2) forward) on floats; None
         where the scalar path does not apply (an unbounded or empty heading)."""
         x0, y0, th0 = self._latest_f()
@@ -148,16 +149,16 @@ class SlidingWindowCP(MessageIntake):
         try:
             dx, dy, dth = cps.odometry_displacement(
                 th0,
-                cps.add(th0, cps.div(cps.sub(r, l), e)),
+                isc.add(th0, isc.div(isc.sub(r, l), e)),
                 r,
                 l,
                 e,
                 self.cfg.kappa,
                 self.cfg.chord,
             )
-        except cps.Fallback:
+        except isc.Fallback:
             return None
-        return tuple(IV.of(*cps.add(a, b)) for a, b in ((x0, dx), (y0, dy), (th0, dth)))  # type: ignore[return-value]
+        return tuple(IV.of(*isc.add(a, b)) for a, b in ((x0, dx), (y0, dy), (th0, dth)))  # type: ignore[return-value]
 
     def _slide(self) -> None:
         """Drop the oldest state; its knowledge survives as the next state's prior."""
@@ -211,7 +212,7 @@ class SlidingWindowCP(MessageIntake):
             # and the latest solution or prediction: all in the chain's representation),
             # over every branch of ``iv`` that meets it.
             ref = self._theta_ref()
-            known = cps.meet((cur[0], cur[1]), (float(ref.lo), float(ref.hi)))
+            known = isc.meet((cur[0], cur[1]), (float(ref.lo), float(ref.hi)))
             if known == (-math.inf, math.inf):
                 # Nothing known of any heading of the window yet: the representation is
                 # free (shifting every heading by 2*pi*k keeps every constraint), so the
@@ -219,9 +220,9 @@ class SlidingWindowCP(MessageIntake):
                 iv = align_angle(IV.of(lo, hi), 0.0)
                 lo, hi = float(iv.lo), float(iv.hi)
             elif lo <= hi:
-                lo, hi = cps.meet_angle_s(known, (lo, hi))
+                lo, hi = isc.meet_angle_s(known, (lo, hi))
             else:
-                lo, hi = cps.EMPTY
+                lo, hi = isc.EMPTY
         cur[0] = max(cur[0], lo)
         cur[1] = min(cur[1], hi)
         self._dirty = True
@@ -266,7 +267,7 @@ class SlidingWindowCP(MessageIntake):
         self._hard(self._w.hth, thi, angle=True)
         return True
 
-    def relative_f(self, stamp_ns: int, peers: list[tuple[cps.Iv, ...]]) -> bool | None:
+    def relative_f(self, stamp_ns: int, peers: list[tuple[isc.Iv, ...]]) -> bool | None:
         """:meth:`relative` on floats (``localization.cp_scalar``): ``peers`` holds
         (peer x, peer y, rho, beta) bounds per peer. True when the box was contracted;
         None where the scalar path does not apply (unbounded or empty boxes, a proven
@@ -274,13 +275,13 @@ class SlidingWindowCP(MessageIntake):
         age_s = self._age_s(stamp_ns)
         grow = self.cfg.speed_bound_mps * age_s
         turn = self.cfg.yaw_rate_bound_radps * age_s
-        inf = cps.inflate
+        inf = isc.inflate
         ps = [(inf(px, grow), inf(py, grow), r, inf(b, turn)) for px, py, r, b in peers]
         try:
             (xl, xh), (yl, yh), (tl, th) = cps.relative_fixpoint(
                 self._latest_f(), ps, self.cfg.tol, 4
             )
-        except cps.Fallback:
+        except isc.Fallback:
             return None
         self._hard_f(self._w.hx, xl, xh)
         self._hard_f(self._w.hy, yl, yh)
@@ -311,7 +312,7 @@ class SlidingWindowCP(MessageIntake):
         hx, hy, hth = w.hard_latest()
         return x & hx, y & hy, th & hth
 
-    def _latest_f(self) -> tuple[cps.Iv, cps.Iv, cps.Iv]:
+    def _latest_f(self) -> tuple[isc.Iv, isc.Iv, isc.Iv]:
         """The latest box as float bounds, without a window solve when possible: the
         last solution (or the one-step prediction from it, met with this step's GPS box
         unless outliers are tolerated) met with the hard boxes added since. Valid, and
@@ -326,17 +327,17 @@ class SlidingWindowCP(MessageIntake):
             x, y, th = ((float(v.lo), float(v.hi)) for v in self._pred)
             g = w.gps[-1]
             if g is not None and self.cfg.gps_outliers == 0:
-                x, y = cps.meet(x, (g[0], g[1])), cps.meet(y, (g[2], g[3]))
-                if x == cps.EMPTY or y == cps.EMPTY:  # inconsistent fix: let the solver relax
+                x, y = isc.meet(x, (g[0], g[1])), isc.meet(y, (g[2], g[3]))
+                if x == isc.EMPTY or y == isc.EMPTY:  # inconsistent fix: let the solver relax
                     x, y, th = (_last(v) for v in self._solve())
         else:
             x, y, th = (_last(v) for v in self._solve())
         # hth and th are both in the chain's representation of the heading (every hard
         # heading is met inside it by _hard): a plain intersection.
         return (
-            cps.meet(x, tuple(w.hx[-1])),
-            cps.meet(y, tuple(w.hy[-1])),
-            cps.meet(th, tuple(w.hth[-1])),
+            isc.meet(x, tuple(w.hx[-1])),
+            isc.meet(y, tuple(w.hy[-1])),
+            isc.meet(th, tuple(w.hth[-1])),
         )
 
     def solve(self) -> tuple[IV, IV, IV]:
@@ -369,7 +370,7 @@ class SlidingWindowCP(MessageIntake):
         return self._sol
 
 
-def _peer_tuples(px: IV, py: IV, rho: IV, beta: IV) -> list[tuple[cps.Iv, ...]] | None:
+def _peer_tuples(px: IV, py: IV, rho: IV, beta: IV) -> list[tuple[isc.Iv, ...]] | None:
     """The per-peer float bounds of :meth:`SlidingWindowCP.relative`'s arrays (None if
     their shapes do not broadcast to one axis of peers)."""
     cols = [np.atleast_1d(a).tolist() for v in (px, py, rho, beta) for a in (v.lo, v.hi)]
@@ -380,7 +381,7 @@ def _peer_tuples(px: IV, py: IV, rho: IV, beta: IV) -> list[tuple[cps.Iv, ...]] 
     return [((a, b), (c, d), (e, f), (g, h)) for a, b, c, d, e, f, g, h in zip(*cols, strict=True)]
 
 
-def _last(v: IV) -> cps.Iv:
+def _last(v: IV) -> isc.Iv:
     return float(v.lo[-1]), float(v.hi[-1])
 
 

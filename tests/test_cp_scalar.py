@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import localization.cp_scalar as cps
+import localization.interval_scalar as isc
 from fakes.world.paper_scenario import simulate
 from hilnav.fleet.paper import PaperRobot
 from localization.contractors import contract_range_bearing
@@ -49,17 +50,17 @@ def _IV(a: tuple[float, float]) -> IV:
 def test_ops_match_the_array_ops(al, aw, bl, bw, cl, cw):
     a, b, c = _iv(al, aw), _iv(bl, bw), _iv(cl, cw)
     A, B, C = _IV(a), _IV(b), _IV(c)
-    assert _same(cps.add(a, b), A + B)
-    assert _same(cps.sub(a, b), A - B)
-    assert _same(cps.mul(a, b), A * B)
-    assert _same(cps.div(a, b), _div(A, B))
-    assert _same(cps.sqr(a), sqr(A))
-    assert _same(cps.bwd_sqr(a, b), bwd_sqr(A, B))
-    assert _same(cps.bwd_mul(a, b, c), bwd_mul(A, B, C))
-    assert _same(cps.cos(a), cos(A), TOL)
-    assert _same(cps.sin(a), sin(A), TOL)
-    assert _same(cps.bearing(a, b), bearing(A, B), TOL)
-    assert _same(cps.meet_angle_s(a, b), meet_angle(A, B), TOL)
+    assert _same(isc.add(a, b), A + B)
+    assert _same(isc.sub(a, b), A - B)
+    assert _same(isc.mul(a, b), A * B)
+    assert _same(isc.div(a, b), _div(A, B))
+    assert _same(isc.sqr(a), sqr(A))
+    assert _same(isc.bwd_sqr(a, b), bwd_sqr(A, B))
+    assert _same(isc.bwd_mul(a, b, c), bwd_mul(A, B, C))
+    assert _same(isc.cos(a), cos(A), TOL)
+    assert _same(isc.sin(a), sin(A), TOL)
+    assert _same(isc.bearing(a, b), bearing(A, B), TOL)
+    assert _same(isc.meet_angle_s(a, b), meet_angle(A, B), TOL)
 
 
 def test_ops_on_zero_and_infinite_ends():
@@ -68,10 +69,10 @@ def test_ops_on_zero_and_infinite_ends():
         ((1.0, 2.0), (0.0, math.inf)),
         ((-1.0, 3.0), (0.0, 0.0)),
     ]:
-        assert _same(cps.div(a, b), _div(_IV(a), _IV(b)))
-        assert _same(cps.mul(a, b), _IV(a) * _IV(b))
-        assert _same(cps.bwd_mul(b, a, b), bwd_mul(_IV(b), _IV(a), _IV(b)))
-    assert _same(cps.bearing((0.0, 0.0), (0.0, 0.0)), bearing(IV.of(0.0, 0.0), IV.of(0.0, 0.0)))
+        assert _same(isc.div(a, b), _div(_IV(a), _IV(b)))
+        assert _same(isc.mul(a, b), _IV(a) * _IV(b))
+        assert _same(isc.bwd_mul(b, a, b), bwd_mul(_IV(b), _IV(a), _IV(b)))
+    assert _same(isc.bearing((0.0, 0.0), (0.0, 0.0)), bearing(IV.of(0.0, 0.0), IV.of(0.0, 0.0)))
 
 
 def _case(rng: np.random.Generator):
@@ -109,7 +110,7 @@ def test_range_bearing_matches_array_path_and_keeps_feasible_points(seed):
     ref = contract_range_bearing(*[_IV(b) for b in boxes])
     try:
         out = cps.contract_range_bearing(*boxes)
-    except cps.Fallback:
+    except isc.Fallback:
         # Only where the array path proves something empty (its result then decides).
         assert any(bool(r.is_empty()) for r in ref)
         return
@@ -214,9 +215,9 @@ def test_odometry_displacement_matches_array_path(th, tw, r, rw, l):
     from localization.interval_trig import sinc_half
 
     th0, rr, ll, e = (th, th + tw), (r - rw, r + rw), (l - rw, l + rw), (0.33, 0.33)
-    th1 = cps.add(th0, cps.div(cps.sub(rr, ll), e))
+    th1 = isc.add(th0, isc.div(isc.sub(rr, ll), e))
     ref = odometry_displacement(_IV(th0), _IV(th1), _IV(rr), _IV(ll), _IV(e), 0.5, True)
     out = cps.odometry_displacement(th0, th1, rr, ll, e, 0.5, True)
     for o, a in zip(out, ref, strict=True):
         assert _same(o, a, TOL)
-    assert _same(cps.sinc_half((th, th + tw)), sinc_half(IV.of(th, th + tw)), TOL)
+    assert _same(isc.sinc_half((th, th + tw)), sinc_half(IV.of(th, th + tw)), TOL)
