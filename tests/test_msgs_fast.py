@@ -13,6 +13,7 @@ import dataclasses
 import json
 import math
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -104,7 +105,6 @@ def test_non_finite_floats_travel_as_strings_and_decode_back():
 
 
 def test_numpy_scalars_encode_as_numbers():
-    np = pytest.importorskip("numpy")
     msg = msgs.GyroSample(np.int64(3), np.float64(0.5), np.float32(0.25))
     assert json.loads(msgs.encode(msg)) == {
         "stamp_ns": 3,
