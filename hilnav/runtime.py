@@ -6,7 +6,9 @@ device and its service loop thread; a fleet robot: the scenario's simulated devi
 by :mod:`hilnav.fleet.host`). The runtime owns:
 
 - the :class:`hilnav.pipeline.Pipeline` of the robot's config (its mapping worker, if
-  any, hands its outputs back here);
+  any, hands its outputs back here), or another pipeline with its interface (``pipeline``:
+  called as ``Pipeline`` is; a fleet robot replaying a data set's robot); a pipeline's
+  ``shared_outputs`` are published and taken from the peers beside the pose boxes;
 - ONE queue (a ``queue.SimpleQueue``: put and get in C; its bound checked on its size):
   :meth:`put` one message, :meth:`put_read` the items of one device read (its raw bytes,
   then its messages) as ONE entry, from any thread (device readers, Zenoh's callbacks),
@@ -35,6 +37,7 @@ import queue
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -103,6 +106,7 @@ class RobotRuntime:
         queue_size: int = 20000,
         prog: str = "hilnav run",
         wake: threading.Event | None = None,
+        pipeline: Callable[..., Any] = Pipeline,
     ) -> None:
         self.cfg = cfg
         self.robot = cfg.name
@@ -112,9 +116,13 @@ class RobotRuntime:
         self.stats = RuntimeStats()
         self.errors: list[str] = []
         self._fault_kinds: set[tuple[str, str]] = set()
-        self.pipeline = Pipeline(
+        self.pipeline = pipeline(
             cfg, on_mapping=self._from_mapping, on_fault=self.fault, on_output=self._from_service
         )
+        # what the pipeline exchanges with its peers besides the pose boxes (hilnav.topics)
+        shared = tuple(getattr(self.pipeline, "shared_outputs", ()))
+        self._peer_topics = tuple(dict.fromkeys((*PEER_TOPICS, *shared)))
+        self._published = PUBLISHED | frozenset(shared)
         self.peers = PeerTable(cfg.services.localization.peer_timeout_s)
         self.peer_events: list[PeerEvent] = []
         # SimpleQueue: put and get in C, no Python-level condition per message; the bound
@@ -161,11 +169,12 @@ class RobotRuntime:
         self.sinks.add("log", self.log)
 
     def declare_peers(self) -> None:
-        """The fleet's pose boxes and liveliness (when localization runs) onto the queue,
-        and the queryables ``pose``, ``map``, ``info``."""
+        """The fleet's pose boxes (the peer topics and the pipeline's shared outputs) and
+        liveliness (when localization runs) onto the queue, and the queryables ``pose``,
+        ``map``, ``info``."""
         assert self.bus is not None
         if self.cfg.services.localization.enabled:
-            for topic in PEER_TOPICS:
+            for topic in self._peer_topics:
                 self.bus.subscribe("*", topic, lambda r, m, t=topic: self._on_peer(r, t, m))
             self.bus.on_liveliness(self._on_liveliness)
         latest = self.pipeline.latest
@@ -327,7 +336,7 @@ class RobotRuntime:
             if mcap_topic is None:
                 mcap_topic = self._log_topics[topic] = log_topic(self.robot, topic)
             records = self.sinks.encode(mcap_topic, msg)
-        if publish and topic in PUBLISHED and self.bus is not None:
+        if publish and topic in self._published and self.bus is not None:
             try:
                 if records:
                     native = records[0]

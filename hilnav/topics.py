@@ -35,6 +35,7 @@ from msgs import (
     LandmarkScan,
     OccupancyGridMsg,
     PeerFix,
+    PeerSighting,
     PoseBox,
     PoseEstimate,
     RangeBearing,
@@ -77,9 +78,14 @@ _TABLE = (
           "eq. 1-4)", published=True),
     Topic("pose", PoseEstimate, "services", "pose EKF: odometry, gyro, GPS (ekf-vs-cp eq. 1-4); "
           "MRCLAM replay: the MRCLAM EKF (velocity odometry, range-bearing)", published=True),
-    Topic("peer_fix", PeerFix, "services", "MRCLAM replay: a robot's position fix of another "
-          "robot it measured (its estimate + range-bearing), for that robot's EKF"),
-    Topic("pose_box", PoseBox, "services", "guaranteed CP box (ekf-vs-cp eq. 5)",
+    Topic("peer_fix", PeerFix, "services", "MRCLAM: a robot's position fix of another robot "
+          "it measured (its estimate + range-bearing), for that robot's EKF (on Zenoh in "
+          "hilnav fleet: a shared output of the MRCLAM robots' pipeline)"),
+    Topic("pose_box", PoseBox, "services", "guaranteed CP box (ekf-vs-cp eq. 5); MRCLAM: the "
+          "real-robot CP's box every 0.1 s, with its guarantee's status",
+          published=True, peer=True),
+    Topic("peer_sighting", PeerSighting, "services", "MRCLAM: a robot's range-bearing "
+          "measurement of another robot with its own CP box, for that robot's CP",
           published=True, peer=True),
     Topic("map", OccupancyGridMsg, "services", "IR occupancy grid (ir-grid-mapping eq. 5-8)",
           published=True),

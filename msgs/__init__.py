@@ -7,7 +7,7 @@ SI units throughout (metres, radians, seconds, volts); stamps are integer nanose
 
 from msgs.codec import DecodeError, decode, encode, from_dict, json_schema, schema_name, to_dict
 from msgs.diagnostics import DaemonStatus, DeviceDiagnostics
-from msgs.estimates import HeadingEstimate, PeerFix, PoseBox, PoseEstimate
+from msgs.estimates import HeadingEstimate, PeerFix, PeerSighting, PoseBox, PoseEstimate
 from msgs.geometry import Interval, Pose2D
 from msgs.landmarks import LandmarkMap, LandmarkScan, VehicleControl
 from msgs.log import GroundTruth, RawBytes
@@ -35,6 +35,7 @@ __all__ = [
     "LandmarkScan",
     "OccupancyGridMsg",
     "PeerFix",
+    "PeerSighting",
     "Pose2D",
     "PoseBox",
     "PoseEstimate",

@@ -33,7 +33,12 @@ class HeadingEstimate:
 class PoseBox:
     """A guaranteed box on (x, y, theta) from constraint propagation.
 
-    Bounds may be infinite (an unknown heading); decoding refuses NaN."""
+    Bounds may be infinite (an unknown heading); the heading interval may be unwrapped
+    (any 2 pi k shift of it holds). ``status`` is what the localizer says of its
+    guarantee ("" when it says nothing; the real-robot CP: ok, cold, relaxed, reinit,
+    lost, unknown) and ``alert_stamp_ns`` when it last had to weaken it (relaxed,
+    reinit, lost; 0: never), so that peers can hold its boxes back for a while.
+    Decoding refuses NaN."""
 
     FLOATS: ClassVar[str] = "no_nan"
 
@@ -43,6 +48,8 @@ class PoseBox:
     y: Interval
     theta: Interval
     frame: str = "map"
+    status: str = ""
+    alert_stamp_ns: int = 0
 
     @property
     def area_m2(self) -> float:
@@ -69,3 +76,20 @@ class PeerFix:
     cov_estimate: tuple[float, float, float]
     cov_measurement: tuple[float, float, float]
     frame: str = "map"
+
+
+@dataclass(frozen=True, slots=True)
+class PeerSighting:
+    """Robot ``observer`` measured robot ``robot`` at ``range_m``, ``bearing_rad`` (in the
+    observer's body frame) at ``stamp_ns``, when its own guaranteed box was ``box``: for
+    the seen robot's CP, an observation of itself (cooperative CP on real robots).
+    Decoding refuses NaN."""
+
+    FLOATS: ClassVar[str] = "no_nan"
+
+    stamp_ns: int
+    robot: str
+    observer: str
+    range_m: float
+    bearing_rad: float
+    box: PoseBox

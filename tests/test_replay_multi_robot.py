@@ -71,17 +71,17 @@ def test_velocity_robot_feeds_its_localizers_or_counts_range_bearing_unused() ->
     assert initial_poses({"initial_pose.r1": "1,2,0.5", "initial_pose.r2": "bad", "x": "1"}) == {
         "r1": Pose2D(1.0, 2.0, 0.5)
     }
-    p = VelocityRobotPipeline("r1", Pose2D(1.0, 2.0, 0.0), ekf=False)
+    p = VelocityRobotPipeline("r1", Pose2D(1.0, 2.0, 0.0), ekf=False, cp=False)
     assert p.feed("landmark_range_bearing", RangeBearing(1, "r1", "l6", True, 2.0, 0.1, 6)) == []
     assert p.feed("peer_range_bearing", RangeBearing(1, "r1", "r2", False, 2.0, 0.1, 2)) == []
     assert dict(p.unused) == {"landmark_range_bearing": 1, "peer_range_bearing": 1}
     ((topic, est),) = p.feed("velocity", VelocityOdometry(S, 0.1, 0.0))
     assert topic == "dead_reckoning" and est.pose == Pose2D(1.0, 2.0, 0.0) and est.frame == "map"
     assert VelocityRobotPipeline("r2").dr.frame == "odom"  # no initial pose: its own frame
-    assert VelocityRobotPipeline("r2").services == ["dead_reckoning"]  # nor an EKF
+    assert VelocityRobotPipeline("r2").services == ["dead_reckoning", "mrclam_cp"]  # no EKF
     # With an initial pose, the MRCLAM EKF: it takes the range-bearing messages and
     # publishes its pose every 0.05 s from the first velocity message.
-    p = VelocityRobotPipeline("r1", Pose2D(1.0, 2.0, 0.0))
+    p = VelocityRobotPipeline("r1", Pose2D(1.0, 2.0, 0.0), cp=False)
     assert p.services == ["dead_reckoning", "mrclam_ekf"]
     assert p.feed("landmark_range_bearing", RangeBearing(1, "r1", "l6", True, 2.0, 0.1, 6)) == []
     out = p.feed("velocity", VelocityOdometry(S, 0.1, 0.0))
@@ -102,6 +102,7 @@ def test_a_velocity_log_without_metadata_replays_every_robot(tmp_path: Path) -> 
                 w.write(f"/{robot}/truth", GroundTruth(k * S, robot, Pose2D(0.5 * k, 0, 0)), k * S)
     rep = replay(src, tmp_path / "out.mcap", progress=False)
     assert rep.robot == "r1,r2" and rep.pipeline_errors == 0
+    # (no landmark map: the CP publishes nothing)
     assert dict(rep.outputs) == {"dead_reckoning": 10} and rep.passed == 10
     dr = [m for m in read_messages(tmp_path / "out.mcap") if m.topic.endswith("dead_reckoning")]
     assert {m.topic for m in dr} == {"/r1/dead_reckoning", "/r2/dead_reckoning"}

@@ -71,7 +71,11 @@ def _gps_points(ax, ra: RobotAnalysis) -> None:
 def _sparse_boxes(ax, ra: RobotAnalysis) -> None:
     """A few CP boxes (evenly spaced in time, the last included), lightly filled, below
     the paths, so that they show the box size without hiding the paths."""
-    boxes = [b for b in ra.series.boxes.boxes if not (b.x.empty or b.y.empty)]
+    boxes = [
+        b
+        for b in ra.series.boxes.boxes
+        if not (b.x.empty or b.y.empty) and np.isfinite([b.x.lo, b.x.hi, b.y.lo, b.y.hi]).all()
+    ]
     if not boxes:
         return
     picks = sorted({round(i) for i in np.linspace(0, len(boxes) - 1, min(PATH_BOXES, len(boxes)))})
@@ -197,7 +201,9 @@ def plot_boxes(ra: RobotAnalysis, path: Path) -> Path | None:
     ax.set_xlabel("time (s)")
     ax.set_ylabel("area (m²)")
     ax.ticklabel_format(axis="y", useOffset=False)
-    ax.set_ylim(bottom=0.0, top=max(float(np.max(bs.area)) * 1.1, 1e-3))
+    finite = bs.area[np.isfinite(bs.area)]  # an unbounded box (nothing known yet) is off the plot
+    top = float(np.max(finite)) * 1.1 if finite.size else 1.0
+    ax.set_ylim(bottom=0.0, top=max(top, 1e-3))
     box = ra.cp_boxes.containment if ra.cp_boxes is not None else None
     frac = box.contained_fraction if box is not None else None
     title = f"{ra.name}: CP pose box areas"

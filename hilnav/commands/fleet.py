@@ -54,6 +54,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=float, default=1.0, help="simulated seconds per wall second")
     p.add_argument("--seed", type=int, default=1, help="seed of the scenario's errors")
     p.add_argument("--window", type=int, default=40, help="CP sliding window (steps)")
+    p.add_argument(
+        "--data", default=None, metavar="DIR", help="the recorded run (--scenario mrclam)"
+    )
+    p.add_argument(
+        "--start", type=float, default=0.0, help="seconds of the recorded run skipped (mrclam)"
+    )
     p.add_argument("--config", help="the robots' base config (TOML); the scenario sets the rest")
     p.add_argument("--hosts", type=int, default=None, help="host processes (default: one per core)")
     p.add_argument(
@@ -133,7 +139,13 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     connect = list(args.connect) or list(base.zenoh.connect)
     routers = 0 if connect else max(1, args.routers)
-    names = entry.robot_names(ScenarioArgs(args.robots, args.duration, args.seed, args.window))
+    sargs = ScenarioArgs(
+        args.robots, args.duration, args.seed, args.window, args.data or "", args.start
+    )
+    try:
+        names = entry.robot_names(sargs)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
     kills = _parse_kills(args.kill, names, routers)
     out = (args.out or Path(tempfile.mkdtemp(prefix="hilnav-fleet-"))).resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -178,6 +190,7 @@ def launch(
             scenario=args.scenario, robots=args.robots, seed=args.seed, duration=args.duration,
             rate=args.rate, window=args.window, config=args.config, out=out,
             no_log=args.no_log, no_reference=args.no_reference,
+            data=str(Path(args.data).resolve()) if args.data else None, start=args.start or None,
         )  # fmt: skip
         for i, members in enumerate(groups):
             cmd = host_command(f"h{i + 1}", members, zs, **opts)
@@ -195,15 +208,33 @@ def launch(
         raise CliError(str(exc)) from None
     finally:
         fleet.reap()
-    return summarize(out, names, args.duration, router_cpu)
+    return summarize(out, names, args.duration, router_cpu, args.scenario)
+
+
+def _paper_line(r: dict[str, Any]) -> str:
+    drops = [e for e in r["peer_events"] if not e[2]]
+    dropped = ", ".join(f"{e[1]} ({e[3]})" for e in drops) or "none"
+    return (
+        f"{r['robot']}: multi CP area {r['multi_cp_area']:.2f} m^2 s, contained "
+        f"{r['multi_cp_contained']}/{r['steps']}, peer boxes {r['peer_boxes_received']}, "
+        f"dropped {dropped}"
+    )
 
 
 def summarize(
-    out: Path, names: list[str], sim_s: float, extra_cpu: dict[str, float]
+    out: Path,
+    names: list[str],
+    sim_s: float,
+    extra_cpu: dict[str, float],
+    scenario: str = "paper",
 ) -> dict[str, Any]:
-    """The run's JSON from the robots' and hosts' files (and the routers' CPU)."""
+    """The run's JSON from the robots' and hosts' files (and the routers' CPU); the
+    scenario's entry says how its robots' figures are pooled and printed."""
+    from hilnav.fleet.scenarios import SCENARIOS
     from hilnav.fleet.score import percentile, pooled
 
+    entry = SCENARIOS[scenario]
+    pool, line = entry.pool or pooled, entry.line or _paper_line
     results = []
     for name in names:
         f = out / f"{name}.json"
@@ -212,17 +243,11 @@ def summarize(
             continue
         r = json.loads(f.read_text())
         results.append(r)
-        drops = [e for e in r["peer_events"] if not e[2]]
-        dropped = ", ".join(f"{e[1]} ({e[3]})" for e in drops) or "none"
-        print(
-            f"{name}: multi CP area {r['multi_cp_area']:.2f} m^2 s, contained "
-            f"{r['multi_cp_contained']}/{r['steps']}, peer boxes {r['peer_boxes_received']}, "
-            f"dropped {dropped}"
-        )
+        print(line(r))
     if not results:
         raise CliError("no robot finished; nothing to report")
     hosts = [json.loads(f.read_text()) for f in sorted(out.glob("host-*.json"))]
-    res = pooled(results)
+    res = pool(results)
     res["integrity_alarms"] = sum(r.get("integrity_alarms", 0) for r in results)
     res["robots"] = [r["robot"] for r in results]
     res["dropped"] = {

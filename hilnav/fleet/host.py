@@ -43,6 +43,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--duration", type=float, default=50.0)
     p.add_argument("--rate", type=float, default=1.0, help="simulated seconds per wall second")
     p.add_argument("--window", type=int, default=40)
+    p.add_argument("--data", default=None, help="a data set's directory (--scenario mrclam)")
+    p.add_argument("--start", type=float, default=0.0, help="seconds of the data set skipped")
     p.add_argument("--config", default=None, help="the robots' base config (TOML)")
     p.add_argument("--zenoh", required=True, help="the robots' ZenohSettings as JSON")
     p.add_argument("--out", type=Path, required=True)
@@ -84,8 +86,11 @@ class Host:
 
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
-        sa = ScenarioArgs(args.robots, args.duration, args.seed, args.window)
+        sa = ScenarioArgs(
+            args.robots, args.duration, args.seed, args.window, args.data or "", args.start
+        )
         self.scenario = build(args.scenario, sa)
+        robot_class = getattr(self.scenario, "robot_class", SimRobot)
         try:
             base = load_config(args.config)
         except ConfigError as exc:
@@ -94,7 +99,7 @@ class Host:
         self.wake = threading.Event()
         out = None if args.no_log else args.out
         self.robots = [
-            SimRobot(
+            robot_class(
                 self.scenario, name, base, zs, out=out, wake=self.wake,
                 reference=not args.no_reference,
             )

@@ -52,7 +52,7 @@ class SimRobot:
         self.cfg = scenario.config(name, base)
         if not self.cfg.services.localization.enabled:
             raise ValueError(f"{name}: the fleet needs services.localization.enabled = true")
-        self.rt = RobotRuntime(self.cfg, zenoh=zenoh, prog=f"hilnav fleet: {name}", wake=wake)
+        self.rt = self.make_runtime(zenoh, wake)
         self.out = out
         self.want_reference = reference
         self.devices: RobotDevices | None = None
@@ -63,6 +63,10 @@ class SimRobot:
         self._base_ns = 0
         self._rate = 1.0
         self._stamp_ns = 0
+
+    def make_runtime(self, zenoh: ZenohSettings, wake: threading.Event | None) -> RobotRuntime:
+        """The robot's runtime (a scenario's robot class may give it another pipeline)."""
+        return RobotRuntime(self.cfg, zenoh=zenoh, prog=f"hilnav fleet: {self.name}", wake=wake)
 
     @property
     def cp(self) -> Any:

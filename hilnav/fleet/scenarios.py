@@ -53,7 +53,9 @@ class Reference(Protocol):
 
 
 class FleetScenario(Protocol):
-    """What a fleet run needs of a scenario."""
+    """What a fleet run needs of a scenario. A scenario may also name the class of its
+    robots (``robot_class``, the host's :class:`hilnav.fleet.robot.SimRobot` when it does
+    not): a subclass that runs another pipeline or steps otherwise."""
 
     @property
     def names(self) -> list[str]: ...
@@ -83,6 +85,8 @@ class ScenarioArgs:
     duration_s: float
     seed: int
     window: int = 40
+    data: str = ""  # a data set's directory (recorded robots)
+    start_s: float = 0.0  # seconds of the data set skipped
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,10 @@ class ScenarioEntry:
     build: Callable[[ScenarioArgs], FleetScenario]
     max_robots: int | None = None
     names: Callable[[ScenarioArgs], list[str]] | None = None
+    #: the run's figures from the robots' results (None: the paper's, hilnav.fleet.score)
+    pool: Callable[[list[dict[str, Any]]], dict[str, Any]] | None = None
+    #: one line about a robot's result (None: the paper's)
+    line: Callable[[dict[str, Any]], str] | None = None
 
     def robot_names(self, args: ScenarioArgs) -> list[str]:
         return self.names(args) if self.names is not None else self.build(args).names
@@ -134,5 +142,43 @@ register(
         "gyro, GPS and a range-bearing sensor seeing the others, every error bounded",
         _paper,
         names=_paper_names,
+    )
+)
+
+
+def _mrclam(a: ScenarioArgs) -> FleetScenario:
+    from hilnav.fleet.mrclam import MrclamScenario
+
+    return MrclamScenario.build(a.data, a.robots, a.duration_s, a.start_s)
+
+
+def _mrclam_names(a: ScenarioArgs) -> list[str]:
+    from hilnav.fleet.mrclam import fleet_subjects
+
+    return [f"r{n}" for n in fleet_subjects(a.data, a.robots)]
+
+
+def _mrclam_pool(results: list[dict[str, Any]]) -> dict[str, Any]:
+    from hilnav.fleet.mrclam_robot import pool
+
+    return pool(results)
+
+
+def _mrclam_line(result: dict[str, Any]) -> str:
+    from hilnav.fleet.mrclam_robot import line
+
+    return line(result)
+
+
+register(
+    ScenarioEntry(
+        "mrclam",
+        "a recorded MRCLAM run (--data DIR, real data): its first N robots, each replaying "
+        "its velocity odometry and camera measurements (from --start, at --rate) through "
+        "the real-robot CP (and the MRCLAM EKF), scored against the motion capture",
+        _mrclam,
+        names=_mrclam_names,
+        pool=_mrclam_pool,
+        line=_mrclam_line,
     )
 )

@@ -166,12 +166,14 @@ def _entity(stamp_ns: int, frame: str, ident: str, **prims: list[dict[str, Any]]
 
 
 def pose_box_scene(box: PoseBox, frame: str | None = None) -> dict[str, Any]:
-    """foxglove.SceneUpdate of a CP box: a flat cube over x/y and arrows at theta lo/hi.
+    """foxglove.SceneUpdate of a CP box: a flat cube over x/y and arrows at theta lo/hi
+    (no arrows for an unbounded heading; a deletion for an empty or unbounded box).
 
     ``frame`` is the entity's frame (default: the box's own)."""
     ident = f"{box.robot}/pose_box"
     frame = box.frame if frame is None else frame
-    if box.x.empty or box.y.empty or box.theta.empty:
+    bounded = all(math.isfinite(v) for v in (box.x.lo, box.x.hi, box.y.lo, box.y.hi))
+    if box.x.empty or box.y.empty or box.theta.empty or not bounded:
         deletion = {"timestamp": time_of(box.stamp_ns), "type": 0, "id": ident}
         return {"deletions": [deletion], "entities": []}
     cx, cy = (box.x.lo + box.x.hi) / 2.0, (box.y.lo + box.y.hi) / 2.0
@@ -192,6 +194,7 @@ def pose_box_scene(box: PoseBox, frame: str | None = None) -> dict[str, Any]:
             "color": ARROW_COLOR,
         }
         for th in (box.theta.lo, box.theta.hi)
+        if math.isfinite(th)
     ]
     return {
         "deletions": [],

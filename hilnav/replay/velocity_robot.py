@@ -11,12 +11,15 @@
 - every message also goes to each service of ``self.localizers``, the localizers that
   take velocity odometry, the landmark map and range-bearing measurements, each with
   ``feed(topic, msg)`` and ``feed_other(robot, topic, msg)`` (the other robots' outputs,
-  hilnav.replay.multi_robot). With an initial pose: the MRCLAM EKF
-  (localization.mrclam_service: ``pose`` every 0.05 s, ``peer_fix``). Range-bearing
-  messages that no localizer takes are counted in ``self.unused``.
+  hilnav.replay.multi_robot). The real-robot CP (localization.mrclam_cp_service:
+  ``pose_box`` every 0.1 s, ``peer_sighting``), which starts knowing nothing; with an
+  initial pose, the MRCLAM EKF (localization.mrclam_service: ``pose`` every 0.05 s,
+  ``peer_fix``). Range-bearing messages that no localizer takes are counted in
+  ``self.unused``.
 
 The outputs the other robots need (``SHARED_OUTPUTS``: the EKF's published estimates and
-its position fixes of the robots it saw) go to their ``feed_other``.
+its position fixes of the robots it saw, the CP's sightings with its box; its boxes are a
+peer topic of hilnav.topics) go to their ``feed_other``.
 """
 
 from __future__ import annotations
@@ -25,14 +28,16 @@ from collections import Counter
 from typing import Any
 
 from fusion.dead_reckoning import VelocityDeadReckoning
+from localization.cp_config import RangeBearingCPConfig
 from localization.mrclam_config import MrclamEkfConfig
+from localization.mrclam_cp_service import MrclamCpService
 from localization.mrclam_service import MrclamEkfService
 from msgs import LandmarkMap, Pose2D, RangeBearing, VelocityOdometry
 
 Outputs = list[tuple[str, Any]]
 RANGE_BEARING_TOPICS = ("landmark_range_bearing", "peer_range_bearing")
 #: Outputs of a robot's localizers that the other robots' localizers take.
-SHARED_OUTPUTS = ("pose", "peer_fix")
+SHARED_OUTPUTS = ("pose", "peer_fix", "peer_sighting")
 
 
 def initial_poses(meta: dict[str, str]) -> dict[str, Pose2D]:
@@ -52,7 +57,8 @@ def initial_poses(meta: dict[str, str]) -> dict[str, Pose2D]:
 
 class VelocityRobotPipeline:
     """The services of one velocity-odometry robot (see the module docstring).
-    ``ekf``: the MRCLAM EKF's configuration (None: its replay default; False: no EKF)."""
+    ``ekf``: the MRCLAM EKF's configuration (None: its replay default; False: no EKF);
+    ``cp``: the CP's (None: ``RangeBearingCPConfig()``; False: no CP)."""
 
     shared_outputs = SHARED_OUTPUTS
 
@@ -61,6 +67,7 @@ class VelocityRobotPipeline:
         robot: str,
         initial: Pose2D | None = None,
         ekf: MrclamEkfConfig | None | bool = None,
+        cp: RangeBearingCPConfig | None | bool = None,
     ) -> None:
         self.robot = robot
         frame = "map" if initial is not None else "odom"
@@ -69,6 +76,10 @@ class VelocityRobotPipeline:
         self.unused: Counter = Counter()
         self.services = ["dead_reckoning"]
         self.localizers: list[Any] = []
+        if cp is not False:
+            cfg_cp = cp if isinstance(cp, RangeBearingCPConfig) else None
+            self.localizers.append(MrclamCpService(robot, cfg_cp))
+            self.services.append("mrclam_cp")
         if initial is not None and ekf is not False:
             cfg = ekf if isinstance(ekf, MrclamEkfConfig) else None
             self.localizers.append(MrclamEkfService(robot, initial, cfg))
@@ -91,8 +102,15 @@ class VelocityRobotPipeline:
         return out
 
     def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
-        """Another robot's outputs (its estimates, position fixes, boxes)."""
+        """Another robot's outputs (its estimates, position fixes, boxes, sightings)."""
         out: Outputs = []
         for svc in self.localizers:
             out += svc.feed_other(robot, topic, msg)
         return out
+
+    def drop_peer(self, robot: str) -> None:
+        """A peer left (fleet): its box is no longer used."""
+        for svc in self.localizers:
+            drop = getattr(svc, "drop_peer", None)
+            if drop is not None:
+                drop(robot)
