@@ -55,6 +55,7 @@ def test_containment_map_and_diagnostics(synth: tuple[Path, dict]) -> None:
     frac = 1 - exp["bad_boxes"] / exp["boxes"]
     assert cp.containment.contained_fraction == pytest.approx(frac)
     assert cp.median_area_m2 == pytest.approx(0.16)
+    assert cp.containment.median_area_m2 == pytest.approx(0.16)  # every box judged
     assert ra.ekf_3sigma["pose"].contained_fraction == pytest.approx(exp["ekf_contained"], abs=0.01)
     assert ra.map.plan == "office"
     assert ra.map.match_ratio == pytest.approx(exp["match_ratio"], abs=1e-6)

@@ -206,9 +206,9 @@ def test_import_replay_analyze_of_real_robots_holds_the_truth_as_the_batch_does(
         assert boxes["judged"] >= 390 and boxes["contained_fraction"] >= 0.995, boxes
         pose, has = run.robots[n].truth_at(tr.t)
         assert containment(tr, pose)[has].mean() >= 0.995
-        w = tr.box[:, 1] - tr.box[:, 0]
+        w = tr.box[has, 1] - tr.box[has, 0]
         area = float(np.median(w[:, 0] * w[:, 1]))
-        assert boxes["area_m2"]["median"] == pytest.approx(area, rel=0.02), (n, area)
+        assert boxes["judged_median_area_m2"] == pytest.approx(area, rel=0.02), (n, area)
         assert area < 20.0  # bounded: the landmarks were found
     # cooperation made the boxes of the robots that were seen smaller
     single = {n: np.median(np.prod(tr.box[:, 1, :2] - tr.box[:, 0, :2], axis=1))

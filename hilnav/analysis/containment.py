@@ -93,6 +93,7 @@ def box_summary(bs: BoxSeries) -> BoxSummary:
             judged=int(judged.sum()),
             contained_fraction=float(bs.contained[judged].mean()),
             violations=int((bs.contained[judged] == 0).sum()),
+            median_area_m2=float(np.median(bs.area[judged])),
         )
     widths = np.degrees([max(0.0, b.theta.hi - b.theta.lo) for b in bs.boxes])
     return BoxSummary(

@@ -77,6 +77,7 @@ def _boxes(b: BoxSummary) -> JsonDict:
         out["judged"] = b.containment.judged
         out["contained_fraction"] = b.containment.contained_fraction
         out["violations"] = b.containment.violations
+        out["judged_median_area_m2"] = b.containment.median_area_m2
     return out
 
 
@@ -213,7 +214,7 @@ def digest(analysis: Analysis) -> list[str]:
             lines.append(
                 f"  {robot} CP boxes contain the truth "
                 f"{100 * box.containment.contained_fraction:.1f} % "
-                f"(median area {box.median_area_m2:.1f} m2)"
+                f"(median area {box.containment.median_area_m2:.1f} m2)"
             )
     return lines
 

@@ -91,11 +91,13 @@ class EkfContainment:
 
 @dataclass(frozen=True)
 class BoxContainment:
-    """How many CP boxes were judged against the truth, and how many held it."""
+    """How many CP boxes were judged against the truth, how many held it, and the median
+    area of those judged (the boxes in a gap of the truth left out)."""
 
     judged: int
     contained_fraction: float
     violations: int
+    median_area_m2: float = float("nan")
 
 
 @dataclass(frozen=True)

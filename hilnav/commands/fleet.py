@@ -14,6 +14,11 @@ host process of its own) 2 s of wall time after the start; ``--kill router1@5`` 
 router. The command prints one line per robot and, last, a JSON object: the figures of
 bench/cooperative_cp.py pooled over the surviving robots, the peers each dropped, the
 real-time factor, the CPU used and the age of the peers' boxes when handled.
+
+``--scenario mrclam --data DIR [--start S]``: the robots are the first N recorded robots
+of an MRCLAM run (real data, :mod:`hilnav.fleet.mrclam`), each replaying its odometry and
+camera through the real-robot CP and the MRCLAM EKF; their figures are the CP boxes'
+containment and areas against the motion capture (the scenario's ``pool``).
 """
 
 from __future__ import annotations
@@ -38,19 +43,22 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run N robots (the daemon's runtime) meeting through Zenoh routers",
         description="Cooperative CP localization with N robots: each runs the daemon's runtime "
         "(CP localization service, peers, Zenoh session, MCAP log <out>/<robot>.mcap) fed by "
-        "the scenario's simulated devices, in real time. Robots are shared out over host "
+        "the scenario's simulated devices (or a data set's recorded robots: --scenario "
+        "mrclam --data DIR), in real time. Robots are shared out over host "
         "processes and reach each other only through Zenoh routers (started here on loopback "
         "unless --connect or the config names some). A peer whose token goes or whose boxes "
         "stop is dropped until it returns. Prints one line per robot and, last, a JSON summary.",
     )
-    p.add_argument("--robots", type=int, default=3, help="number of robots (paper: 3)")
+    p.add_argument(
+        "--robots", type=int, default=3, help="number of robots (paper: 3; mrclam: up to 5)"
+    )
     p.add_argument(
         "--scenario",
         default="paper",
         choices=sorted(SCENARIOS),
         help="; ".join(f"{e.name}: {e.doc}" for e in SCENARIOS.values()),
     )
-    p.add_argument("--duration", type=float, default=50.0, help="simulated seconds")
+    p.add_argument("--duration", type=float, default=50.0, help="simulated (or recorded) seconds")
     p.add_argument("--rate", type=float, default=1.0, help="simulated seconds per wall second")
     p.add_argument("--seed", type=int, default=1, help="seed of the scenario's errors")
     p.add_argument("--window", type=int, default=40, help="CP sliding window (steps)")
