@@ -19,6 +19,9 @@ tick before a frame of the same instant), each after the commands stamped up to 
 instant, the order of the batch runner. The ticks are every ``tick_s`` from the landmark
 map's stamp (the log's start); before the map, only the commands are taken.
 
+``advance(stamp_ns)`` says the same without a message (a clock: the fleet's robots call
+it at every step, so that their boxes go out while their odometry pauses).
+
 Outputs:
 
 - ``pose_box`` (msgs.PoseBox) at every tick: the box predicted from the latest solved
@@ -142,6 +145,16 @@ class MrclamCpService:
                 self.counts["before_map"] += 1
             else:
                 self._frame.append(msg)
+        return out
+
+    def advance(self, stamp_ns: int) -> list[tuple[str, Any]]:
+        """A clock: everything stamped up to ``stamp_ns`` is in, so the ticks and the
+        frame up to it are handled now rather than at the next message (a robot whose
+        odometry pauses still publishes its boxes)."""
+        if self._t0_ns is None or stamp_ns < self._now_ns:
+            return []
+        out = self._until(stamp_ns + 1)
+        self._now_ns = stamp_ns
         return out
 
     def feed_other(self, robot: str, topic: str, msg: Any) -> list[tuple[str, Any]]:

@@ -102,6 +102,10 @@ def test_ticks_wait_for_their_instant_and_the_boxes_hold_the_truth() -> None:
     svc.feed("landmark_range_bearing", RangeBearing(3 * S, "r1", "l42", True, 1.0, 0.0, 42))
     svc.feed("velocity", VelocityOdometry(3 * S + 1, 0.0, 0.0, True))
     assert svc.counts["unknown_landmark"] == 1
+    # a clock says the same without a message: the ticks up to its instant go out
+    # (the tick at 3 s went out with the message stamped after it)
+    assert [m.stamp_ns for _, m in svc.advance(3 * S + S // 5)] == [31 * S // 10, 32 * S // 10]
+    assert svc.advance(3 * S) == [] and svc.advance(3 * S + S // 4) == []
 
 
 def test_peers_exchange_boxes_and_sightings() -> None:

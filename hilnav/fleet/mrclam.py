@@ -169,10 +169,14 @@ class MrclamDevices:
             tuple(lm[i][3] ** 2 for i in ids),
         )
 
+    def step_ns(self, s: int) -> int:
+        """The stamp of step ``s``'s instant: what was recorded up to it is in the step."""
+        return self.base_ns + round(s * self.sc.dt * 1e9)
+
     def _span(self, ns: np.ndarray, s: int) -> slice:
         """Rows of step ``s``: recorded after step s-1's instant, up to step s's."""
-        hi = self.base_ns + round(s * self.sc.dt * 1e9) - self._shift
-        lo = self.base_ns + round((s - 1) * self.sc.dt * 1e9) - self._shift
+        hi = self.step_ns(s) - self._shift
+        lo = self.step_ns(s - 1) - self._shift
         i = int(np.searchsorted(ns, lo, side="right")) if s else 0
         return slice(i, int(np.searchsorted(ns, hi, side="right")))
 

@@ -9,9 +9,10 @@ session and log), scored against the motion capture.
   CP's ``pose_box`` and ``peer_sighting`` (peer topics), the EKF's ``pose`` and
   ``peer_fix`` (the pipeline's ``shared_outputs``);
 - :class:`MrclamRobot`: a :class:`hilnav.fleet.robot.SimRobot` whose step puts the robot's
-  recorded messages of the step through its queue as one read and logs the motion
-  capture of the step; it does not wait for its peers (their boxes are aged by their
-  stamps). Its figures: the CP boxes at their ticks against the motion capture at the
+  recorded messages of the step through its queue as one read, tells its CP that the
+  step's instant has come (its ticks up to it go out, also while the odometry pauses)
+  and logs the motion capture of the step; it does not wait for its peers (their boxes
+  are aged by their stamps). Its figures: the CP boxes at their ticks against the motion capture at the
   same instant (containment, areas, heading widths), the peers' boxes and sightings
   received and their age (wall time received minus the wall time their stamp was due),
   the EKF's RMSE and 3-sigma containment;
@@ -79,6 +80,12 @@ class VelocityRuntimePipeline:
             if self.on_output is not None:
                 self.on_output(t, m, tag)
 
+    def advance(self, stamp_ns: int, tag: Any = None) -> list[tuple[str, Any]]:
+        """Everything recorded up to ``stamp_ns`` is in (the step's clock)."""
+        out = self.inner.advance(stamp_ns)
+        self._take(out, tag)
+        return out
+
     def feed_other(self, robot: str, topic: str, msg: Any) -> list[tuple[str, Any]]:
         return self.inner.feed_other(robot, topic, msg)
 
@@ -118,7 +125,10 @@ class MrclamRobot(SimRobot):
         if msgs:
             self.rt.put_read(msgs)
         self.pump()
-        topic, now = log_topic(self.name, "truth"), time.time_ns()
+        # what was recorded up to the step's instant is in: the CP's ticks up to it go out
+        now = time.time_ns()
+        self.rt.guard("services", self.pipe.advance, self.devices.step_ns(s), now)
+        topic = log_topic(self.name, "truth")
         for gt in self.devices.truth_messages(s):
             self.rt.log_msg(topic, gt, now)
 

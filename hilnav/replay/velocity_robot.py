@@ -108,6 +108,15 @@ class VelocityRobotPipeline:
             out += svc.feed_other(robot, topic, msg)
         return out
 
+    def advance(self, stamp_ns: int) -> Outputs:
+        """Everything up to ``stamp_ns`` is in (a clock, for the localizers that take one)."""
+        out: Outputs = []
+        for svc in self.localizers:
+            adv = getattr(svc, "advance", None)
+            if adv is not None:
+                out += adv(stamp_ns)
+        return out
+
     def drop_peer(self, robot: str) -> None:
         """A peer left (fleet): its box is no longer used."""
         for svc in self.localizers:
