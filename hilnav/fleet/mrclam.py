@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 
 from hilnav.config import RobotConfig, config_data, parse_config
-from hilnav.importers.mrclam import landmark_name, robot_name, to_ns
+from hilnav.importers.mrclam import landmark_map, landmark_name, robot_name, to_ns
 from localization.mrclam import MAX_TRUTH_GAP_S, MrclamRun, load_mrclam, robot_subjects
-from msgs import GroundTruth, LandmarkMap, Pose2D, RangeBearing, VelocityOdometry, wrap_angle
+from msgs import GroundTruth, Pose2D, RangeBearing, VelocityOdometry, wrap_angle
 
 #: Scenario time between two steps of the hosts (s): what a robot was recorded doing in
 #: that time reaches its runtime as one read.
@@ -157,17 +157,7 @@ class MrclamDevices:
         gaps = np.where(gaps > int(MAX_TRUTH_GAP_S * 1e9), gaps, 0)
         k = (tr_ns >= t0_ns) & (tr_ns <= end_ns)
         self.truth_rows, self.truth_ns, self.truth_gap = rr.truth[k], tr_ns[k], gaps[k]
-        ids = sorted(sc.run.landmarks)
-        lm = sc.run.landmarks
-        self.landmark_map = LandmarkMap(
-            self.base_ns,
-            tuple(ids),
-            tuple(lm[i][0] for i in ids),
-            tuple(lm[i][1] for i in ids),
-            tuple(lm[i][2] ** 2 for i in ids),
-            tuple(0.0 for _ in ids),
-            tuple(lm[i][3] ** 2 for i in ids),
-        )
+        self.landmark_map = landmark_map(sc.run.landmarks, self.base_ns)
 
     def step_ns(self, s: int) -> int:
         """The stamp of step ``s``'s instant: what was recorded up to it is in the step."""

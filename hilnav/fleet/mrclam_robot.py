@@ -120,11 +120,7 @@ class MrclamRobot(SimRobot):
 
     def begin_step(self, s: int) -> None:
         assert self.devices is not None
-        self.pump()
-        msgs = self.devices.messages(s)
-        if msgs:
-            self.rt.put_read(msgs)
-        self.pump()
+        self.feed_step(s)
         # what was recorded up to the step's instant is in: the CP's ticks up to it go out
         now = time.time_ns()
         self.rt.guard("services", self.pipe.advance, self.devices.step_ns(s), now)
@@ -141,30 +137,16 @@ class MrclamRobot(SimRobot):
 
     def result(self, dt: float) -> dict[str, Any]:
         rt, cp = self.rt, self.pipe.cp
-        b = rt.bus.stats if rt.bus is not None else None
-        out: dict[str, Any] = {
-            "robot": self.name,
-            "steps": self.steps,
-            "dt": dt,
-            "peer_events": [
-                [round(e.wall_ns * 1e-9, 4), e.robot, e.present, e.why] for e in rt.peer_events
-            ],
-            "peer_boxes_received": rt.stats.by_topic.get("pose_box", 0),
-            "peer_sightings_received": rt.stats.by_topic.get("peer_sighting", 0),
-            "sightings_sent": cp.sightings_sent,
-            "sightings_heard": cp.sightings_heard,
-            "box_age_ms": [round(a, 2) for a in self.ages_ms],
-            "bus": {
-                "published": b.published if b else 0,
-                "received": b.received if b else 0,
-                "malformed": b.malformed if b else 0,
-                "foreign": b.foreign if b else 0,
-            },
-            "faults": dict(rt.stats.faults),
-            "queue_dropped": rt.stats.dropped,
-            "cp_counts": dict(cp.counts),
-            "cp_outliers_named": len(cp.cp.outliers),
-        }
+        out = self.runtime_figures(dt)
+        out.update(
+            {
+                "peer_sightings_received": rt.stats.by_topic.get("peer_sighting", 0),
+                "sightings_sent": cp.sightings_sent,
+                "sightings_heard": cp.sightings_heard,
+                "cp_counts": dict(cp.counts),
+                "cp_outliers_named": len(cp.cp.outliers),
+            }
+        )
         out.update(self._score_cp())
         out.update(self._score_ekf())
         return out

@@ -107,13 +107,20 @@ class SimRobot:
         rt.expire_peers()
         return n
 
-    def begin_step(self, s: int) -> None:
+    def feed_step(self, s: int) -> list[tuple[str, Any]]:
+        """The device messages of step ``s`` through the queue as one read, handled (the
+        peers' boxes that came first too); the messages."""
         assert self.devices is not None
         self.pump()
         msgs = self.devices.messages(s)
         if msgs:
             self.rt.put_read(msgs)
         self.pump()
+        return msgs
+
+    def begin_step(self, s: int) -> None:
+        assert self.devices is not None
+        msgs = self.feed_step(s)
         self._stamp_ns = stamp = int(msgs[0][1].stamp_ns) if msgs else self._stamp_ns
         t = self.devices.truth(s)
         truth = GroundTruth(stamp, self.name, Pose2D(t.x, t.y, wrap_angle(t.theta)))
@@ -148,9 +155,18 @@ class SimRobot:
 
     def result(self, dt: float) -> dict[str, Any]:
         """This robot's figures (the fleet command pools them)."""
+        out = self.runtime_figures(dt)
+        out.update({f"multi_cp_{k}": v for k, v in self.multi.figures(dt).items()})
+        if self.reference is not None:
+            out.update(self.reference.figures(dt))
+        return out
+
+    def runtime_figures(self, dt: float) -> dict[str, Any]:
+        """What every scenario's robot reports: steps, peers, the peers' boxes and their
+        age, the bus, the faults."""
         rt = self.rt
         b = rt.bus.stats if rt.bus is not None else None
-        out: dict[str, Any] = {
+        return {
             "robot": self.name,
             "steps": self.steps,
             "dt": dt,
@@ -168,7 +184,3 @@ class SimRobot:
             "faults": dict(rt.stats.faults),
             "queue_dropped": rt.stats.dropped,
         }
-        out.update({f"multi_cp_{k}": v for k, v in self.multi.figures(dt).items()})
-        if self.reference is not None:
-            out.update(self.reference.figures(dt))
-        return out

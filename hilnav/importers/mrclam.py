@@ -88,6 +88,23 @@ class MrclamImportReport:
         }
 
 
+def landmark_map(
+    landmarks: dict[int, tuple[float, float, float, float]], stamp_ns: int
+) -> LandmarkMap:
+    """The run's surveyed landmarks (subject -> x, y, std-dev x, std-dev y) as a
+    msgs.LandmarkMap (ids = subjects, covariance from the std-devs)."""
+    ids = sorted(landmarks)
+    return LandmarkMap(
+        stamp_ns,
+        tuple(ids),
+        tuple(landmarks[i][0] for i in ids),
+        tuple(landmarks[i][1] for i in ids),
+        tuple(landmarks[i][2] ** 2 for i in ids),
+        tuple(0.0 for _ in ids),
+        tuple(landmarks[i][3] ** 2 for i in ids),
+    )
+
+
 def to_ns(t_s: np.ndarray) -> np.ndarray:
     """Data set seconds -> integer ns, read to the microsecond (the files hold ms)."""
     return np.round(np.asarray(t_s, dtype=float) * 1e6).astype(np.int64) * 1000
@@ -128,15 +145,7 @@ def import_mrclam(
     rep = MrclamImportReport(str(directory), str(out), names)
     rep.dropped.update(run.dropped)
     ids = sorted(run.landmarks)
-    lmap = LandmarkMap(
-        lo,
-        tuple(ids),
-        tuple(run.landmarks[i][0] for i in ids),
-        tuple(run.landmarks[i][1] for i in ids),
-        tuple(run.landmarks[i][2] ** 2 for i in ids),
-        tuple(0.0 for _ in ids),
-        tuple(run.landmarks[i][3] ** 2 for i in ids),
-    )
+    lmap = landmark_map(run.landmarks, lo)
     streams: list[Iterator[Item]] = []
     meta = {
         "dataset": "mrclam",
