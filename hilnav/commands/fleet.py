@@ -87,7 +87,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-reference",
         action="store_true",
-        help="skip the comparison localizers (the paper's EKF, single CP)",
+        help="skip the comparison localizers (paper: its EKF, single CP; mrclam: the EKF)",
     )
     p.add_argument(
         "--kill",
