@@ -41,6 +41,7 @@ Usage (time-ordered calls)::
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -53,15 +54,26 @@ from localization.velocity_odometry import (
     StepBounds,
     StepIntegral,
     combine,
-    predict_boxes,
+    predict_hulls,
     step_bounds,
 )
 
 _INF = np.inf
+#: Depth model: a bearing whose cosine is below this gives no upper range bound.
+MIN_COS = 0.1
+#: Ranges below this count as this in the bearing bound (a lateral error over range).
+MIN_RANGE_M = 0.3
 
 
 def _unknown() -> np.ndarray:
     return np.array([[-_INF] * 4, [_INF] * 4])
+
+
+def _pieces_at(sol: WindowSolution, k: int) -> np.ndarray:
+    """(B, 2, 4): x, y, th, c of state ``k`` in every piece of ``sol``."""
+    return np.stack(
+        [sol.px[:, :, k], sol.py[:, :, k], sol.pth[:, :, k], sol.pc[:, :, k]], -1
+    ).transpose(1, 0, 2)
 
 
 @dataclass(frozen=True)
@@ -134,7 +146,8 @@ class RangeBearingCP:
         self.landmarks = dict(landmarks or {})
         self.odo = CommandIntegrator(self.cfg.command_lag_s, self.cfg.max_hold_s)
         self._states: list[_State] = []
-        self._prior = _unknown()  # (2, 4): x, y, th, c of the window's first state
+        #: (P, 2, 4): x, y, th, c of the window's first state, per piece (a sub-paving)
+        self._prior = _unknown()[None]
         self._sol: WindowSolution | None = None
         self.status = "unknown"
         self.outliers: list[tuple[float, str, int]] = []  # (t, kind, subject), each once
@@ -153,15 +166,31 @@ class RangeBearingCP:
     def advance(self, t: float) -> None:
         self.odo.advance(t)
 
-    def _rho(self, r: float) -> tuple[float, float]:
+    def _rho(self, r: float, b: float, robot: bool = False) -> tuple[float, float]:
+        """The true range of a target measured at range ``r``, bearing ``b``: the
+        bounds of the config hold the depth r cos(b) (``range_model = "depth"``) or the
+        range itself; ``robot``: the target is a robot (its own bounds)."""
         c = self.cfg
-        return (
-            max(0.0, (1.0 - c.range_rel_lo) * r - c.range_abs_m),
-            (1.0 + c.range_rel_hi) * r + c.range_abs_m,
+        lo_rel, hi_rel = (
+            (c.robot_range_rel_lo, c.robot_range_rel_hi)
+            if robot
+            else (c.range_rel_lo, c.range_rel_hi)
         )
+        lo = max(0.0, (1.0 - lo_rel) * r - c.range_abs_m)
+        hi = (1.0 + hi_rel) * r + c.range_abs_m
+        if c.range_model == "depth":
+            cb = math.cos(b)
+            if cb < MIN_COS:  # outside any camera's field of view: r >= its depth only
+                return lo, _INF
+            lo, hi = lo / cb, hi / cb
+        return float(np.nextafter(lo, -_INF)) if lo > 0.0 else 0.0, float(np.nextafter(hi, _INF))
 
-    def _beta(self, b: float) -> tuple[float, float]:
-        return (b - self.cfg.bearing_rad, b + self.cfg.bearing_rad)
+    def _beta(self, b: float, r: float) -> tuple[float, float]:
+        """The bearing measured ``b`` (at range ``r``) relative to the camera heading:
+        within bearing_rad + bearing_lateral_m / r of it."""
+        c = self.cfg
+        e = c.bearing_rad + c.bearing_lateral_m / max(r, MIN_RANGE_M)
+        return (b - e, b + e)
 
     def _valid(self, r: float, b: float) -> bool:
         ok = np.isfinite(r) and np.isfinite(b) and r >= 0.0
@@ -179,7 +208,9 @@ class RangeBearingCP:
         k = self.cfg.landmark_sigmas
         lx, ly, sx, sy = lm
         other = (lx - k * sx, lx + k * sx, ly - k * sy, ly + k * sy, -_INF, _INF)
-        return Observation(t, "landmark", int(subject), True, other, self._rho(r), self._beta(b))
+        return Observation(
+            t, "landmark", int(subject), True, other, self._rho(r, b), self._beta(b, r)
+        )
 
     def _aged(self, t: float, box: PeerBox) -> tuple[float, ...]:
         age = abs(t - box.t)
@@ -206,7 +237,13 @@ class RangeBearingCP:
         if not self._valid(r, b) or not self._trusted(t, box):
             return None
         return Observation(
-            t, "peer_seen", int(peer), True, self._aged(t, box), self._rho(r), self._beta(b)
+            t,
+            "peer_seen",
+            int(peer),
+            True,
+            self._aged(t, box),
+            self._rho(r, b, True),
+            self._beta(b, r),
         )
 
     def seen_by(self, t: float, peer: int, r: float, b: float, box: PeerBox) -> Observation | None:
@@ -216,7 +253,9 @@ class RangeBearingCP:
         aged = list(self._aged(t, box))
         g = self.cfg.bearing_common_rad  # the peer's camera heading: its heading +- this
         aged[4], aged[5] = aged[4] - g, aged[5] + g
-        return Observation(t, "seen_by", int(peer), False, tuple(aged), self._rho(r), self._beta(b))
+        return Observation(
+            t, "seen_by", int(peer), False, tuple(aged), self._rho(r, b, True), self._beta(b, r)
+        )
 
     def hear(self, peer: int, r: float, b: float, box: PeerBox) -> None:
         """``peer`` (box ``box``, stamped when it saw this robot) saw this robot at range
@@ -255,15 +294,17 @@ class RangeBearingCP:
             if sol is not None and sol.x.shape[1] < 2:
                 break  # state 1 not solved yet: keep state 0 until it is
             if sol is not None:
-                # state 1's solved box holds what the window knew about state 0
-                self._prior = np.stack(
-                    [sol.x[:, 1], sol.y[:, 1], sol.th[:, 1], sol.c[:, 1]], axis=1
-                )
+                # state 1's solved pieces hold what the window knew about state 0
+                self._prior = _pieces_at(sol, 1)
                 self._sol = replace(
-                    sol, x=sol.x[:, 1:], y=sol.y[:, 1:], th=sol.th[:, 1:], c=sol.c[:, 1:]
+                    sol,
+                    **{
+                        f: getattr(sol, f)[..., 1:]
+                        for f in ("x", "y", "th", "c", "px", "py", "pth", "pc")
+                    },
                 )
             else:
-                self._prior = _unknown()
+                self._prior = _unknown()[None]
             del s[0]
             s[0].step, s[0].raw = None, None
 
@@ -276,16 +317,24 @@ class RangeBearingCP:
             f: np.array([getattr(b, f) for b in steps], dtype=float)
             for f in StepBounds.__dataclass_fields__
         }
-        hard = np.empty((4, 2, n))
-        hard[:, 0], hard[:, 1] = -_INF, _INF
-        if prior:
-            hard[:, :, 0] = self._prior.T
+        # Hard boxes (4, 2, P, n) of P pieces: the previous solution's (warm), else the
+        # prior's pieces at the first state, else one unknown piece.
         sol = self._sol
-        if warm and sol is not None:
+        warm = warm and sol is not None
+        pr = self._prior if prior else _unknown()[None]
+        npc = sol.px.shape[1] if warm else pr.shape[0]
+        hard = np.empty((4, 2, npc, n))
+        hard[:, 0], hard[:, 1] = -_INF, _INF
+        if warm:
             k = min(sol.x.shape[1], n)
-            for i, v in enumerate((sol.x, sol.y, sol.th, sol.c)):
-                hard[i, 0, :k] = np.maximum(hard[i, 0, :k], v[0, :k])
-                hard[i, 1, :k] = np.minimum(hard[i, 1, :k], v[1, :k])
+            for i, v in enumerate((sol.px, sol.py, sol.pth, sol.pc)):
+                hard[i, :, :, :k] = v[:, :, :k]
+            if prior:  # the prior (hull of its pieces) at the first state too
+                lo, hi = pr[:, 0].min(axis=0), pr[:, 1].max(axis=0)
+                hard[:, 0, :, 0] = np.maximum(hard[:, 0, :, 0], lo[:, None])
+                hard[:, 1, :, 0] = np.minimum(hard[:, 1, :, 0], hi[:, None])
+        else:
+            hard[:, :, :, 0] = pr.transpose(2, 1, 0)
         obs = [(i, o) for i, st in enumerate(s) for o in st.obs]
         m = len(obs)
         b = np.zeros((7, 2, m))
@@ -315,7 +364,7 @@ class RangeBearingCP:
             c.bearing_common_rad, c.heading_piece_rad, c.max_pieces, c.heading_sectors,
         )  # fmt: skip
         if not sol.empty and sol.rebased:
-            self._prior[:, 2:] = _unknown()[:, 2:]  # the headings' representation changed
+            self._prior[:, :, 2:] = _unknown()[None, :, 2:]  # the headings' representation changed
         return sol
 
     def _solve(self) -> None:
@@ -336,13 +385,13 @@ class RangeBearingCP:
         if sol.empty:
             sol, status = self._run(False, False, q), "reinit"
             if not sol.empty:
-                self._prior = _unknown()
+                self._prior = _unknown()[None]
         self._name(sol)
         if sol.empty:
             self.events.append((t, "lost"))
             last = self._states[-1]
             self._states = [_State(last.t, last.theta, None, [])]
-            self._prior = _unknown()
+            self._prior = _unknown()[None]
             self._sol = None
             self.status = "lost"
             self.last_alert = t
@@ -368,8 +417,9 @@ class RangeBearingCP:
 
     # -- outputs -------------------------------------------------------------------
     def latest(self) -> tuple[float, float, np.ndarray, StepIntegral] | None:
-        """(t, commanded heading, (2, 4) box x, y, th, c) of the latest solved state,
-        and the commands' integral from it to the latest integrated instant."""
+        """(t, commanded heading, (B, 2, 4) boxes x, y, th, c of the B pieces) of the
+        latest solved state, and the commands' integral from it to the latest integrated
+        instant."""
         if self._sol is None or not self._states:
             return None
         s = self._sol
@@ -378,18 +428,17 @@ class RangeBearingCP:
         for st in self._states[k + 1 :]:  # states not solved yet
             since = combine(since, st.raw)
         since = combine(since, self.odo.peek())
-        box = np.stack([s.x[:, k], s.y[:, k], s.th[:, k], s.c[:, k]], axis=1)
-        return self._states[k].t, self._states[k].theta, box, since
+        return self._states[k].t, self._states[k].theta, _pieces_at(s, k), since
 
     def box(self) -> RBBox:
-        """The box at the latest integrated instant (predicted from the latest solved
-        state)."""
+        """The box at the latest integrated instant (each piece of the latest solved
+        state predicted, and their hull)."""
         t = self.odo.t if self.odo.t is not None else 0.0
         ref = self.latest()
         if ref is None:
             return RBBox(t, (-_INF, _INF), (-_INF, _INF), (-_INF, _INF), self.status)
         _, theta0, b, st = ref
-        out = predict_boxes(b[None], np.array([theta0]), [st], self.cfg)
+        out = predict_hulls([b], np.array([theta0]), [st], self.cfg)
         return RBBox(
             t,
             (out[0, 0, 0], out[0, 1, 0]),
@@ -399,8 +448,9 @@ class RangeBearingCP:
         )
 
     def snapshot(self) -> tuple[float, float, np.ndarray, StepIntegral, str, float] | None:
-        """What :func:`velocity_odometry.predict_boxes` needs to compute the box at the
-        latest integrated instant later, in bulk (for scoring many instants)."""
+        """What :func:`velocity_odometry.predict_hulls` needs to compute the box at the
+        latest integrated instant later, in bulk (for scoring many instants): t,
+        commanded heading, the (B, 2, 4) pieces, the step since, status, last alert."""
         ref = self.latest()
         if ref is None:
             return None

@@ -68,7 +68,8 @@ MAX_HYPOTHESES = 4000
 class WindowProblem:
     """The window as the solver sees it: n states, n - 1 steps, m observations.
 
-    Boxes are (2, n) arrays (lo row, hi row). ``obs`` is (7, 2, m) in the row order of
+    Hard boxes are (2, n) arrays (lo row, hi row), or (2, P, n) for P pieces (a
+    sub-paving: the truth lies in one of them, each a box over the whole window). ``obs`` is (7, 2, m) in the row order of
     ``localization.range_bearing``; the robot's own rows (OX, OY, OTH where ``own``,
     else AX, AY) are filled by the solver from the state boxes."""
 
@@ -80,7 +81,7 @@ class WindowProblem:
     l_hi: np.ndarray
     slack: np.ndarray
     cap: np.ndarray
-    hx: np.ndarray  # (2, n) hard boxes
+    hx: np.ndarray  # (2, n) or (2, P, n) hard boxes
     hy: np.ndarray
     hth: np.ndarray
     hc: np.ndarray
@@ -99,6 +100,12 @@ class WindowSolution:
     empty: bool  # more than q observations (or a prior) wrong: no box
     rebased: bool  # the heading was unknown: solved by sectors, a new representation
     pieces: int  # heading pieces solved
+    #: the live pieces' boxes (2, B, n) of x, y, th, c (in the representation of the
+    #: hull above): the sub-paving the next solve starts from
+    px: np.ndarray | None = None
+    py: np.ndarray | None = None
+    pth: np.ndarray | None = None
+    pc: np.ndarray | None = None
 
 
 def _meet(a: np.ndarray, b) -> np.ndarray:
@@ -147,32 +154,71 @@ def _widen(b: np.ndarray, r: float) -> np.ndarray:
     return out
 
 
+def _as_pieces(b: np.ndarray) -> np.ndarray:
+    """Hard boxes as (2, P, n)."""
+    return b[:, None, :] if b.ndim == 2 else b
+
+
+def _hull_over(v: np.ndarray, member: np.ndarray) -> np.ndarray:
+    """(2, P, n) boxes -> (2, B, n): per row of ``member`` (B, P), the hull of its
+    members."""
+    m = member[:, :, None]
+    return np.stack(
+        [
+            np.min(np.where(m, v[0][None], _INF), axis=1),
+            np.max(np.where(m, v[1][None], -_INF), axis=1),
+        ]
+    )
+
+
 def _pieces(
     p: WindowProblem, half_a: float, beta_c: float, piece_rad: float, max_pieces: int, sectors: int
 ):
-    """The hard boxes (2, B, n) of the offsets, headings and camera headings of every
-    piece of the newest camera heading, and whether the pieces are sectors."""
+    """The hard boxes (2, B, n) of x, y, the offsets, headings and camera headings of
+    every piece of the newest camera heading, and whether the pieces are sectors.
+
+    The problem's own pieces (P of them, each a box over the window: the sub-paving
+    kept from the previous solve) are the parents: the range of their newest camera
+    headings is cut into B slices of at most ``piece_rad`` (at most ``max_pieces``), and
+    each slice gets the hull of the parents whose newest camera heading meets it. Every
+    solution lies in a parent and its newest camera heading in one of the slices that
+    parent meets, so the slices cover every solution."""
+    hx, hy, hth, hc = (_as_pieces(v) for v in (p.hx, p.hy, p.hth, p.hc))
     n = p.theta.shape[0]
     k = n - 1
-    c0 = _meet(p.hc, _offset_of(p.hth, p.theta, half_a))
+    c0 = _meet(hc, _offset_of(hth, p.theta, half_a))
     c0 = _meet(c0, chain_k(c0[0], c0[1], -p.dc, p.dc))
-    lost = not c0[1, k] - c0[0, k] < LOST_WIDTH
+    t0 = _meet(
+        hth[:, :, k],
+        K.add(p.theta[k] + c0[0, :, k], p.theta[k] + c0[1, :, k], -half_a - GUARD, half_a + GUARD),
+    )
+    f0 = _widen(t0, beta_c)
+    ok = (f0[0] <= f0[1]) & ~_dead(hx, hy, hth, c0)
+    if not ok.any():
+        ok[0] = True  # every parent is empty: solve one, which comes out dead
+    hx, hy, hth, c0, f0 = hx[:, ok], hy[:, ok], hth[:, ok], c0[:, ok], f0[:, ok]
+    lost = not float(np.max(c0[1, :, k]) - np.min(c0[0, :, k])) < LOST_WIDTH
     if not lost:
-        t0 = _meet(
-            p.hth[:, k],
-            K.add(p.theta[k] + c0[0, k], p.theta[k] + c0[1, k], -half_a - GUARD, half_a + GUARD),
-        )
-        f0 = _widen(t0, beta_c)
-        b = int(min(max(np.ceil((f0[1] - f0[0]) / piece_rad), 1), max_pieces))
-        e = f0[0] + (f0[1] - f0[0]) * np.arange(b + 1) / b
-        lo, hi = np.maximum(K.down(e[:-1]), f0[0]), np.minimum(K.up(e[1:]), f0[1])
-        lo[0], hi[-1] = f0[0], f0[1]
-        hc = np.repeat(c0[:, None, :], b, axis=1)
-        hth = np.repeat(p.hth[:, None, :], b, axis=1)
+        fl, fh = f0[0], f0[1]
+        f_lo, f_hi = float(np.min(fl)), float(np.max(fh))
+        b = int(min(max(np.ceil((f_hi - f_lo) / piece_rad), 1), max_pieces))
+        e = f_lo + (f_hi - f_lo) * np.arange(b + 1) / b
+        lo, hi = np.maximum(K.down(e[:-1]), f_lo), np.minimum(K.up(e[1:]), f_hi)
+        lo[0], hi[-1] = f_lo, f_hi
+        member = (fl[None, :] <= hi[:, None]) & (fh[None, :] >= lo[:, None])  # (b, P)
+        keep = member.any(axis=1)
+        member, lo, hi = member[keep], lo[keep], hi[keep]
+        b = int(keep.sum())
+        lo = np.maximum(lo, np.min(np.where(member, fl[None, :], _INF), axis=1))
+        hi = np.minimum(hi, np.max(np.where(member, fh[None, :], -_INF), axis=1))
+        hx, hy, hc, hth = (_hull_over(v, member) for v in (hx, hy, c0, hth))
     else:
         # Sectors of [-pi, pi) for the newest camera heading; every hard heading box met
         # with each sector's representation (carried along the chain) on every branch.
+        one = np.ones((1, hx.shape[1]), bool)
+        hx, hy, p_hc, p_hth = (_hull_over(v, one)[:, 0] for v in (hx, hy, c0, hth))
         b = sectors
+        hx, hy = np.repeat(hx[:, None, :], b, axis=1), np.repeat(hy[:, None, :], b, axis=1)
         e = -np.pi + TWO_PI * np.arange(b + 1) / b
         lo, hi = K.down(e[:-1] - 1e-9), K.up(e[1:] + 1e-9)
         anchor = np.empty((2, b, n))
@@ -181,7 +227,7 @@ def _pieces(
         anchor[:, :, k] = K.sub(tl, th, p.theta[k] - half_a - GUARD, p.theta[k] + half_a + GUARD)
         hc = _meet(np.stack(chain_k(anchor[0], anchor[1], -p.dc, p.dc)), anchor)
         hth = np.stack(K.add(p.theta + hc[0], p.theta + hc[1], -half_a - GUARD, half_a + GUARD))
-        for h, ph in ((hc, p.hc), (hth, p.hth)):
+        for h, ph in ((hc, p_hc), (hth, p_hth)):
             fin = np.isfinite(ph[0]) & np.isfinite(ph[1])
             if fin.any():
                 met = meet_angle(IV(h[0][:, fin], h[1][:, fin]), IV(ph[0, fin], ph[1, fin]))
@@ -193,7 +239,7 @@ def _pieces(
     hth[0, :, k], hth[1, :, k] = np.maximum(hth[0, :, k], tl), np.minimum(hth[1, :, k], th)
     cl, ch = K.sub(tl, th, p.theta[k] - half_a - GUARD, p.theta[k] + half_a + GUARD)
     hc[0, :, k], hc[1, :, k] = np.maximum(hc[0, :, k], cl), np.minimum(hc[1, :, k], ch)
-    return hc, hth, hph, lost
+    return hx, hy, hc, hth, hph, lost
 
 
 def _hypotheses(m: int, q: int) -> np.ndarray | None:
@@ -222,6 +268,8 @@ def _relax(
 
 def _solve_pieces(
     p: WindowProblem,
+    hx,
+    hy,
     hc,
     hth,
     hph,
@@ -241,8 +289,7 @@ def _solve_pieces(
     o_own = np.flatnonzero(own)
     t_at = p.theta[at]
     hyps = _hypotheses(m, q)
-    x = np.repeat(p.hx[:, None, :], b, axis=1)
-    y = np.repeat(p.hy[:, None, :], b, axis=1)
+    x, y = hx.copy(), hy.copy()
     th, c, ph = hth.copy(), hc.copy(), hph.copy()
     c = _meet(c, chain_k(c[0], c[1], -p.dc, p.dc))
     obs = np.repeat(p.obs[:, :, None, :], b, axis=2)  # (7, 2, B, m)
@@ -362,8 +409,10 @@ def solve_window(
     camera heading cut into pieces (module doc). ``half_a`` is half the heading
     transient, ``beta_c`` the bound of the bearing error common to one instant."""
     with np.errstate(over="ignore", invalid="ignore"):
-        hc, hth, hph, lost = _pieces(p, half_a, beta_c, piece_rad, max_pieces, sectors)
-        x, y, th, c, dead, bad = _solve_pieces(p, hc, hth, hph, q, half_a, beta_c, iterations, tol)
+        hx, hy, hc, hth, hph, lost = _pieces(p, half_a, beta_c, piece_rad, max_pieces, sectors)
+        x, y, th, c, dead, bad = _solve_pieces(
+            p, hx, hy, hc, hth, hph, q, half_a, beta_c, iterations, tol
+        )
     live = np.flatnonzero(~dead)
     m = p.at.shape[0]
     b = hc.shape[1]
@@ -381,4 +430,4 @@ def solve_window(
         th, c = th[:, live], c[:, live]
     x, y = x[:, live], y[:, live]
     hull = [np.stack([v[0].min(axis=0), v[1].max(axis=0)]) for v in (x, y, th, c)]
-    return WindowSolution(*hull, np.all(bad[live], axis=0), False, lost, b)
+    return WindowSolution(*hull, np.all(bad[live], axis=0), False, lost, b, x, y, th, c)
