@@ -61,6 +61,8 @@ from localization.velocity_odometry import (
 _INF = np.inf
 #: Depth model: a bearing whose cosine is below this gives no upper range bound.
 MIN_COS = 0.1
+#: Relative outward rounding of the range bounds (products of a few floats).
+_ROUND = 1e-12
 #: Ranges below this count as this in the bearing bound (a lateral error over range).
 MIN_RANGE_M = 0.3
 
@@ -183,7 +185,7 @@ class RangeBearingCP:
             if cb < MIN_COS:  # outside any camera's field of view: r >= its depth only
                 return lo, _INF
             lo, hi = lo / cb, hi / cb
-        return float(np.nextafter(lo, -_INF)) if lo > 0.0 else 0.0, float(np.nextafter(hi, _INF))
+        return max(0.0, lo * (1.0 - _ROUND)), hi * (1.0 + _ROUND)  # outward: a few roundings
 
     def _beta(self, b: float, r: float) -> tuple[float, float]:
         """The bearing measured ``b`` (at range ``r``) relative to the camera heading:
