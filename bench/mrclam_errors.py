@@ -42,7 +42,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from localization.cp_config import RangeBearingCPConfig
-from localization.cp_rb import MIN_RANGE_M
+from localization.cp_rb_sightings import MIN_RANGE_M
 from localization.mrclam import MrclamRun, load_mrclam
 from numerics.angles import wrap
 

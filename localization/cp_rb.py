@@ -6,12 +6,16 @@ their stamps. Seconds on the data's own clock, metres, radians.
 - ``localization.velocity_odometry``: the commands integrated between states, and the
   odometry's error model;
 - ``localization.range_bearing``: the observation contractor;
+- ``localization.cp_rb_sightings``: a camera's sightings as intervals (the bounds of
+  ``RangeBearingCPConfig``: the range as a depth r cos(bearing), the bearing bound
+  growing at short range, peers' boxes aged);
 - ``localization.cp_rb_solve``: the window's contraction, q-relaxed over every
   observation, with the heading cut into pieces (sectors when it is unknown);
 - here: :class:`RangeBearingCP`, which keeps the window (one state per observation
-  instant, solved every ``solve_period_s``; a state leaving the window becomes the next
-  one's prior), turns observations into intervals with the bounds of
-  ``RangeBearingCPConfig``, names the inconsistent ones, and fails gracefully.
+  instant, solved every ``solve_period_s``; the solution's heading pieces are kept, each
+  with its boxes over the window, and a state leaving the window becomes the next one's
+  prior, one box per piece), names the inconsistent observations, and fails
+  gracefully.
 
 **Graceful failure.** A solve that comes out empty proves that more than q observations
 of the window (or a prior built from an earlier window) broke their bounds. Then, in
@@ -41,12 +45,12 @@ Usage (time-ordered calls)::
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from localization.cp_config import RangeBearingCPConfig
+from localization.cp_rb_sightings import Observation, PeerBox, Sightings
 from localization.cp_rb_solve import WindowProblem, WindowSolution, solve_window
 from localization.interval_trig import TWO_PI
 from localization.velocity_odometry import (
@@ -59,12 +63,6 @@ from localization.velocity_odometry import (
 )
 
 _INF = np.inf
-#: Depth model: a bearing whose cosine is below this gives no upper range bound.
-MIN_COS = 0.1
-#: Relative outward rounding of the range bounds (products of a few floats).
-_ROUND = 1e-12
-#: Ranges below this count as this in the bearing bound (a lateral error over range).
-MIN_RANGE_M = 0.3
 
 
 def _unknown() -> np.ndarray:
@@ -97,32 +95,6 @@ class RBBox:
             t = th + TWO_PI * np.ceil((lo - th) / TWO_PI)  # the first branch >= lo
             in_th = bool(t <= hi)
         return self.x[0] <= x <= self.x[1] and self.y[0] <= y <= self.y[1] and in_th
-
-
-@dataclass(frozen=True)
-class Observation:
-    """One range-bearing observation as the window keeps it: the other party's box,
-    range and bearing intervals, and its name."""
-
-    t: float
-    kind: str  # landmark | peer_seen | seen_by
-    subject: int  # landmark or peer subject #
-    own: bool  # this robot observes (else it is observed)
-    other: tuple[float, float, float, float, float, float]  # x, y, th (lo, hi) of the other
-    rho: tuple[float, float]
-    beta: tuple[float, float]
-
-
-@dataclass(frozen=True)
-class PeerBox:
-    """A peer's published box with its stamp, and when the peer last had to weaken its
-    guarantee (relaxed, reinit or lost: its box may then be wrong)."""
-
-    t: float
-    x: tuple[float, float]
-    y: tuple[float, float]
-    th: tuple[float, float]
-    alert_t: float = -np.inf
 
 
 @dataclass
@@ -158,7 +130,8 @@ class RangeBearingCP:
         self.solves = 0
         #: when the guarantee last had to be weakened (relaxed, reinit, lost)
         self.last_alert = -_INF
-        self.skipped: dict[str, int] = {}
+        self.sightings = Sightings(self.cfg, self.landmarks)
+        self.skipped = self.sightings.skipped  # sightings refused, by reason
         self._heard: list[tuple[int, float, float, PeerBox]] = []  # seen by peers, not yet used
 
     # -- inputs --------------------------------------------------------------------
@@ -168,96 +141,19 @@ class RangeBearingCP:
     def advance(self, t: float) -> None:
         self.odo.advance(t)
 
-    def _rho(self, r: float, b: float, robot: bool = False) -> tuple[float, float]:
-        """The true range of a target measured at range ``r``, bearing ``b``: the
-        bounds of the config hold the depth r cos(b) (``range_model = "depth"``) or the
-        range itself; ``robot``: the target is a robot (its own bounds)."""
-        c = self.cfg
-        lo_rel, hi_rel = (
-            (c.robot_range_rel_lo, c.robot_range_rel_hi)
-            if robot
-            else (c.range_rel_lo, c.range_rel_hi)
-        )
-        lo = max(0.0, (1.0 - lo_rel) * r - c.range_abs_m)
-        hi = (1.0 + hi_rel) * r + c.range_abs_m
-        if c.range_model == "depth":
-            cb = math.cos(b)
-            if cb < MIN_COS:  # outside any camera's field of view: r >= its depth only
-                return lo, _INF
-            lo, hi = lo / cb, hi / cb
-        return max(0.0, lo * (1.0 - _ROUND)), hi * (1.0 + _ROUND)  # outward: a few roundings
-
-    def _beta(self, b: float, r: float) -> tuple[float, float]:
-        """The bearing measured ``b`` (at range ``r``) relative to the camera heading:
-        within bearing_rad + bearing_lateral_m / r of it."""
-        c = self.cfg
-        e = c.bearing_rad + c.bearing_lateral_m / max(r, MIN_RANGE_M)
-        return (b - e, b + e)
-
-    def _valid(self, r: float, b: float) -> bool:
-        ok = np.isfinite(r) and np.isfinite(b) and r >= 0.0
-        if not ok:
-            self.skipped["invalid_observation"] = self.skipped.get("invalid_observation", 0) + 1
-        return bool(ok)
-
     def landmark(self, t: float, subject: int, r: float, b: float) -> Observation | None:
         """This robot sees landmark ``subject`` at range ``r``, bearing ``b``."""
-        lm = self.landmarks.get(int(subject))
-        if lm is None or not self._valid(r, b):
-            if lm is None:
-                self.skipped["unknown_landmark"] = self.skipped.get("unknown_landmark", 0) + 1
-            return None
-        k = self.cfg.landmark_sigmas
-        lx, ly, sx, sy = lm
-        other = (lx - k * sx, lx + k * sx, ly - k * sy, ly + k * sy, -_INF, _INF)
-        return Observation(
-            t, "landmark", int(subject), True, other, self._rho(r, b), self._beta(b, r)
-        )
-
-    def _aged(self, t: float, box: PeerBox) -> tuple[float, ...]:
-        age = abs(t - box.t)
-        g, gt = self.cfg.peer_speed_mps * age, self.cfg.peer_yaw_rate_radps * age
-        return (
-            box.x[0] - g,
-            box.x[1] + g,
-            box.y[0] - g,
-            box.y[1] + g,
-            box.th[0] - gt,
-            box.th[1] + gt,
-        )
-
-    def _trusted(self, t: float, box: PeerBox) -> bool:
-        ok = t - box.alert_t >= self.cfg.peer_quarantine_s
-        if not ok:
-            self.skipped["peer_box_quarantined"] = self.skipped.get("peer_box_quarantined", 0) + 1
-        return ok
+        return self.sightings.landmark(t, subject, r, b)
 
     def peer_seen(
         self, t: float, peer: int, r: float, b: float, box: PeerBox
     ) -> Observation | None:
         """This robot sees ``peer``, whose last published box is ``box``."""
-        if not self._valid(r, b) or not self._trusted(t, box):
-            return None
-        return Observation(
-            t,
-            "peer_seen",
-            int(peer),
-            True,
-            self._aged(t, box),
-            self._rho(r, b, True),
-            self._beta(b, r),
-        )
+        return self.sightings.peer_seen(t, peer, r, b, box)
 
     def seen_by(self, t: float, peer: int, r: float, b: float, box: PeerBox) -> Observation | None:
         """``peer`` (box ``box``, with its heading) sees this robot at ``r``, ``b``."""
-        if not self._valid(r, b) or not self._trusted(t, box):
-            return None
-        aged = list(self._aged(t, box))
-        g = self.cfg.bearing_common_rad  # the peer's camera heading: its heading +- this
-        aged[4], aged[5] = aged[4] - g, aged[5] + g
-        return Observation(
-            t, "seen_by", int(peer), False, tuple(aged), self._rho(r, b, True), self._beta(b, r)
-        )
+        return self.sightings.seen_by(t, peer, r, b, box)
 
     def hear(self, peer: int, r: float, b: float, box: PeerBox) -> None:
         """``peer`` (box ``box``, stamped when it saw this robot) saw this robot at range

@@ -1,7 +1,7 @@
 """The real-robot CP's measurement intervals and its sub-paving, against sampled truths:
-the camera's depth-range model (localization/cp_rb.py ``_rho``), the range-dependent
+the camera's depth-range model (localization/cp_rb_sightings.py ``_rho``), the range-dependent
 bearing bound, the distance the integrator adds up, the heading slices the window solver
-cuts from the previous solve's pieces (localization/cp_rb_solve.py ``_pieces``), and
+cuts from the previous solve's pieces (localization/cp_rb_pieces.py), and
 the hull of the pieces' predicted boxes (velocity_odometry.predict_hulls).
 """
 
@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from localization.cp_config import RangeBearingCPConfig
-from localization.cp_rb import MIN_COS, RangeBearingCP
-from localization.cp_rb_solve import WindowProblem, _pieces
+from localization.cp_rb_pieces import heading_pieces
+from localization.cp_rb_sightings import MIN_COS, Sightings
 from localization.velocity_odometry import (
     CommandIntegrator,
     StepIntegral,
@@ -30,7 +30,7 @@ LM = {6: (2.0, 1.0, 0.0, 0.0)}
 @pytest.mark.parametrize("model", ["depth", "range"])
 def test_range_interval_holds_every_true_range_inside_the_bounds(model):
     cfg = replace(RangeBearingCPConfig(), range_model=model)
-    cp = RangeBearingCP(cfg, LM, 1)
+    cp = Sightings(cfg, LM)
     rng = np.random.default_rng(11)
     for robot in (False, True):
         lo_rel, hi_rel = (
@@ -56,7 +56,7 @@ def test_range_interval_holds_every_true_range_inside_the_bounds(model):
 
 def test_bearing_bound_is_wider_at_short_range():
     cfg = RangeBearingCPConfig()
-    cp = RangeBearingCP(cfg, LM, 1)
+    cp = Sightings(cfg, LM)
     near, far = cp._beta(0.2, 1.0), cp._beta(0.2, 5.0)
     assert near[0] < far[0] < 0.2 < far[1] < near[1]
     assert math.isclose(far[1] - 0.2, cfg.bearing_rad + cfg.bearing_lateral_m / 5.0)
@@ -84,7 +84,7 @@ def _true_window(rng, n, half_a, beta_c):
 
 
 def test_heading_slices_cover_every_point_of_the_parents():
-    """_pieces cuts the parents' newest camera headings into slices (or sectors, when
+    """heading_pieces cuts the parents' newest camera headings into slices (or sectors, when
     the heading is unknown): a point of any parent lies in some slice, all states."""
     rng = np.random.default_rng(5)
     half_a, beta_c = 0.06, 0.06
@@ -106,12 +106,10 @@ def test_heading_slices_cover_every_point_of_the_parents():
             unknown = rng.uniform(size=(npar, n)) < 0.2
             box[0][unknown], box[1][unknown] = -np.inf, np.inf
             hard[name] = box
-        z = np.zeros(n - 1)
-        p = WindowProblem(
-            theta, dc, z, z, z, z, z, z, hard["x"], hard["y"], hard["th"], hard["c"],
-            np.zeros((7, 2, 0)), np.zeros(0, int), np.zeros(0, bool),
+        hx, hy, hc, hth, hph, lost = heading_pieces(
+            theta, dc, hard["x"], hard["y"], hard["th"], hard["c"],
+            half_a, beta_c, 0.1, int(rng.integers(1, 8)), 24,
         )  # fmt: skip
-        hx, hy, hc, hth, hph, lost = _pieces(p, half_a, beta_c, 0.1, int(rng.integers(1, 8)), 24)
         seen_lost += lost
         seen_sliced += not lost
         found = False
