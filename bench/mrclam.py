@@ -2,6 +2,7 @@
 (issue 14 item 6), alone and cooperatively, in one process.
 
     python3 bench/mrclam.py [DIR] [--seconds S] [--robots 1,2,3] [--tick 0.1] [--no-ekf]
+                            [--decompose]
 
 DIR is any MRCLAM run directory (default ../shared/data/mrclam/MRCLAM_Dataset6; every
 run of the data set has the same files). Localizers, all over the merged time-ordered
@@ -22,6 +23,10 @@ inside modulo 2 pi. Areas and heading widths are medians over all robots' scored
 (unbounded boxes count as infinite, heading widths are capped at 2 pi); also over the
 "fresh" ticks alone, whose box comes from a state solved at most 1 s before (the robot
 saw landmarks or peers), apart from the stretches it drives blind.
+
+``--decompose`` also prints where the cooperative boxes' size comes from: median area
+and heading width by the time since the robot last saw a landmark, and right after a
+frame (< 0.5 s) by the number of landmarks in it.
 
 Prints a table per robot, then ONE JSON object as the last line: cp_containment_min,
 cp_area_median_m2 (cooperative), cp_single_area_median_m2, cp_heading_width_median_rad,
@@ -57,6 +62,53 @@ TWO_PI = 2.0 * np.pi
 #: Boxes predicted from a state solved at most this long before ("fresh": landmarks or
 #: peers in view) are also scored apart from those of the stretches without any.
 FRESH_S = 1.0
+
+
+#: Bins of the decomposition (``--decompose``): seconds since the last landmark sighting.
+SINCE_BINS = (0.0, 0.25, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0, np.inf)
+
+
+def since_landmark(run: MrclamRun, r: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per instant: seconds since robot ``r`` last saw a landmark (inf before the first),
+    and how many landmarks that frame held."""
+    m = run.robots[r].measurements
+    lm = m[np.isin(m[:, 1].astype(int), list(run.landmarks)), 0]
+    frames, count = np.unique(lm, return_counts=True)
+    i = np.searchsorted(frames, t, side="right") - 1
+    since = np.where(i >= 0, t - frames[np.maximum(i, 0)], np.inf)
+    return since, np.where(i >= 0, count[np.maximum(i, 0)], 0)
+
+
+def decompose(run: MrclamRun, tracks: dict[int, CpTrack]) -> list[tuple[str, float, float, float]]:
+    """Where the boxes' size comes from: (bin, fraction of the scored ticks, median area,
+    median heading width) by the time since the last landmark sighting, then by the
+    number of landmarks of that frame (ticks less than 0.5 s after it)."""
+    rows, cols = [], {"area": [], "hw": [], "since": [], "n": []}
+    for r, tr in tracks.items():
+        _, has = run.robots[r].truth_at(tr.t)
+        since, n = since_landmark(run, r, tr.t)
+        w = tr.box[:, 1] - tr.box[:, 0]
+        with np.errstate(invalid="ignore"):
+            cols["area"].append(
+                np.where(np.isfinite(w[:, 0] * w[:, 1]), w[:, 0] * w[:, 1], np.inf)[has]
+            )
+        cols["hw"].append(
+            np.minimum(np.nan_to_num(w[:, 2], nan=TWO_PI, posinf=TWO_PI), TWO_PI)[has]
+        )
+        cols["since"].append(since[has])
+        cols["n"].append(n[has])
+    a, h, since, n = (np.concatenate(cols[k]) for k in ("area", "hw", "since", "n"))
+    bins = [
+        (f"{lo:g}-{hi:g} s", (since >= lo) & (since < hi))
+        for lo, hi in zip(SINCE_BINS[:-1], SINCE_BINS[1:], strict=True)
+    ]
+    bins += [(f"{k} landmark(s), < 0.5 s", (n == k) & (since < 0.5)) for k in range(1, 7)]
+    for name, sel in bins:
+        if sel.any():
+            rows.append(
+                (name, float(sel.mean()), float(np.median(a[sel])), float(np.median(h[sel])))
+            )
+    return rows
 
 
 def score_cp(run: MrclamRun, tracks: dict[int, CpTrack]) -> dict:
@@ -142,6 +194,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--outliers", type=int, default=None, help="q (default: the config's)")
     ap.add_argument("--solve-period", type=float, default=None, help="CP solve period (s)")
     ap.add_argument("--no-ekf", action="store_true", help="CP only")
+    ap.add_argument(
+        "--decompose",
+        action="store_true",
+        help="also the cooperative boxes' size by time since the last landmark sighting and "
+        "by landmarks in that frame",
+    )
     args = ap.parse_args(argv)
     robots = [int(r) for r in args.robots.split(",")] if args.robots else None
     (run, load_s, _) = _timed(lambda: load_mrclam(args.dir, robots))
@@ -172,6 +230,10 @@ def main(argv: list[str] | None = None) -> int:
             f" {c['solves']:>6} {c['outliers_named']:>5} {c['lost']:>4}"
             f" {e.get('rmse_m', float('nan')):>8.3f} {e.get('containment', float('nan')):>6.3f}"
         )
+    if args.decompose:
+        print(f"{'cooperative CP, ticks':>28} {'fraction':>8} {'area':>7} {'hdg':>6}")
+        for name, frac, area, hw in decompose(run, coop):
+            print(f"{name:>28} {frac:>8.3f} {area:>7.2f} {hw:>6.2f}")
     total_wall = load_s + s_wall + c_wall + ekf.get("ekf_wall_s", 0.0)
     total_cpu = s_cpu + c_cpu + ekf.get("ekf_cpu_s", 0.0)
     out = {

@@ -10,16 +10,21 @@ Against the motion-capture truth (where it exists):
   camera lines up with the truth at zero shift; the commands lead it by the lag);
 - heading: E(t) = truth heading - integrated lagged commanded turn, on a 0.02 s grid;
   over every pair of instants up to 10 s apart the residual
-  |E(t1) - E(t0)| - b dt - r int|w| (b, r from the config) must stay below the
-  transient a: its percentiles and the pairs above a;
+  |E(t1) - E(t0)| - b dt - b_m int|v| - r int|w| (b, b_m, r from the config) must stay
+  below the transient a: its percentiles and the pairs above a;
 - path: the true displacement over 0.25 / 1 / 2 s against the commanded path length
   (along the mean heading) and sideways beyond the cone: violations of the path model;
 - speeds: the largest true speed and turn rate (0.5 s), the longest command gap;
-- ranges: true / measured range percentiles (landmarks, robots), and the fraction
-  outside [1 - range_rel_lo, 1 + range_rel_hi] (plus range_abs_m);
+- ranges: true / measured range percentiles (landmarks, robots); the factors of the depth
+  bound (the camera reports the depth r cos(bearing)): true depth in
+  [f_lo rho - abs, f_hi rho + abs] at the 0.05th and 99.95th percentiles, gross misreads
+  (bearing off by more than 0.3 rad) left out; the fraction outside the configured
+  bounds (range_model, range_rel_lo/hi, robot_range_rel_lo/hi, range_abs_m), with and
+  without the misreads;
 - bearings: the fraction of bearings that break the per-frame model (a part common to
-  the frame within bearing_common_rad, each bearing within bearing_rad of it), the best
-  common offset per frame chosen to break the fewest.
+  the frame within bearing_common_rad, each bearing within bearing_rad +
+  bearing_lateral_m / range of it), the best common offset per frame chosen to break
+  the fewest.
 
 The LAST line is one JSON object with these figures.
 """
@@ -37,6 +42,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from localization.cp_config import RangeBearingCPConfig
+from localization.cp_rb_sightings import MIN_RANGE_M
 from localization.mrclam import MrclamRun, load_mrclam
 from numerics.angles import wrap
 
@@ -78,23 +84,26 @@ def clock(run: MrclamRun, ids: list[int]) -> dict:
 
 def _heading_arrays(run: MrclamRun, r: int, lag: float):
     o = run.robots[r].odometry
-    t, w = o[:, 0], o[:, 2]
+    t, v, w = o[:, 0], o[:, 1], o[:, 2]
     tg = np.arange(t[0] + 1.0, min(t[-1], run.robots[r].truth[-1, 0]) - 1.0, GRID)
     i = np.clip(np.searchsorted(t, tg - lag, side="right") - 1, 0, len(t) - 1)
-    wg = w[i]
+    wg, vg = w[i], v[i]
     h = np.concatenate([[0.0], np.cumsum(wg[:-1] * GRID)])
     a = np.concatenate([[0.0], np.cumsum(np.abs(wg[:-1]) * GRID)])
+    dist = np.concatenate([[0.0], np.cumsum(np.abs(vg[:-1]) * GRID)])
     p, ok = run.robots[r].truth_at(tg)
-    return np.unwrap(p[:, 2]) - h, a, ok
+    return np.unwrap(p[:, 2]) - h, a, dist, ok
 
 
 def heading(run: MrclamRun, ids: list[int], cfg: RangeBearingCPConfig) -> dict:
     b, rr, a = cfg.heading_drift_radps, cfg.heading_turn_rel, cfg.heading_transient_rad
+    bm = cfg.heading_drift_per_m
     res, n, over = [], 0, 0
     for r in ids:
-        e, turn, ok = _heading_arrays(run, r, cfg.command_lag_s)
+        e, turn, dist, ok = _heading_arrays(run, r, cfg.command_lag_s)
         for k in list(range(1, 50)) + list(range(50, 500, 10)):
             d = np.abs(e[k:] - e[:-k]) - b * k * GRID - rr * (turn[k:] - turn[:-k])
+            d -= bm * (dist[k:] - dist[:-k])
             d = d[ok[k:] & ok[:-k]]
             n += d.size
             over += int((d > a).sum())
@@ -157,33 +166,61 @@ def speeds(run: MrclamRun, ids: list[int]) -> dict:
     return {"speed_max_mps": v, "turn_rate_max_radps": w, "command_gap_max_s": gap}
 
 
+#: A sighting whose bearing is off by more than this is a gross misread (a barcode read
+#: as another subject): left out of the bounds' percentiles (the q-relaxation's job),
+#: counted in the fractions outside them.
+MISREAD_RAD = 0.3
+
+
 def ranges_and_bearings(run: MrclamRun, ids: list[int], cfg: RangeBearingCPConfig) -> dict:
-    ratio = {"landmark": [], "robot": []}
+    cols = {"landmark": [], "robot": []}  # (true range, measured, bearing measured, misread)
     frames = []
     for r in ids:
         m = run.robots[r].measurements
         p, tgt, ok = _targets(run, r, m)
         true = np.hypot(tgt[:, 0] - p[:, 0], tgt[:, 1] - p[:, 1])
+        e = wrap(m[:, 3] - (np.arctan2(tgt[:, 1] - p[:, 1], tgt[:, 0] - p[:, 0]) - p[:, 2]))
         lm = np.isin(m[:, 1].astype(int), list(run.landmarks))
         for kind, sel in (("landmark", ok & lm), ("robot", ok & ~lm)):
-            ratio[kind].append(true[sel] / m[sel, 2])
-        e = wrap(m[:, 3] - (np.arctan2(tgt[:, 1] - p[:, 1], tgt[:, 0] - p[:, 0]) - p[:, 2]))
+            cols[kind].append(
+                np.column_stack([true, m[:, 2], m[:, 3], np.abs(e) > MISREAD_RAD])[sel]
+            )
         for t in np.unique(m[ok, 0]):
-            frames.append(e[ok & (m[:, 0] == t)])
+            f = ok & (m[:, 0] == t)
+            frames.append((e[f], m[f, 2]))
     out = {}
-    for kind, v in ratio.items():
-        v = np.concatenate(v)
-        lo, hi = 1 - cfg.range_rel_lo, 1 + cfg.range_rel_hi
-        out[f"{kind}_true_over_measured_pct_0.05_99.95"] = [
-            round(float(x), 4) for x in np.percentile(v, [0.05, 99.95])
+    ab = cfg.range_abs_m
+    for kind, v in cols.items():
+        true, rho, psi, bad = np.concatenate(v).T
+        bad = bad > 0
+        good = ~bad
+        depth = true * np.cos(psi)
+        lo_rel, hi_rel = (
+            (cfg.robot_range_rel_lo, cfg.robot_range_rel_hi)
+            if kind == "robot"
+            else (cfg.range_rel_lo, cfg.range_rel_hi)
+        )
+        out[f"{kind}_sightings"] = int(true.size)
+        out[f"{kind}_misreads"] = int(bad.sum())
+        out[f"{kind}_range_true_over_measured_pct_0.05_99.95"] = [
+            round(float(x), 4) for x in np.percentile(true[good] / rho[good], [0.05, 99.95])
         ]
-        out[f"{kind}_range_outside"] = float(np.mean((v < lo) | (v > hi)))
-    br, bc = cfg.bearing_rad, cfg.bearing_common_rad
+        # the bound's factors: true depth in [f_lo rho - abs, f_hi rho + abs] for 99.9 %
+        out[f"{kind}_depth_factors_abs_{ab}_pct_0.05_99.95"] = [
+            round(float(np.percentile((depth[good] + ab) / rho[good], 0.05)), 4),
+            round(float(np.percentile((depth[good] - ab) / rho[good], 99.95)), 4),
+        ]
+        x = depth if cfg.range_model == "depth" else true
+        outside = (x < (1 - lo_rel) * rho - ab) | (x > (1 + hi_rel) * rho + ab)
+        out[f"{kind}_range_outside"] = float(np.mean(outside))
+        out[f"{kind}_range_outside_not_misread"] = float(np.mean(outside[good]))
+    bc = cfg.bearing_common_rad
     broken = 0
-    for e in frames:
+    for e, rho in frames:
+        br = cfg.bearing_rad + cfg.bearing_lateral_m / np.maximum(rho, MIN_RANGE_M)
         cands = np.clip(np.concatenate([e - br, e + br, [0.0]]), -bc, bc)
         broken += min(int(np.sum(np.abs(e - c) > br)) for c in cands)
-    n = sum(len(f) for f in frames)
+    n = sum(len(f[0]) for f in frames)
     out.update(frames=len(frames), bearings=n, bearings_breaking_frame_model=broken)
     out["bearing_outside_fraction"] = broken / max(n, 1)
     return out

@@ -8,6 +8,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+#: What a range-bearing sensor's range measures (RangeBearingCPConfig.range_model).
+RANGE_MODELS = ("depth", "range")
+
 
 @dataclass(frozen=True)
 class CPConfig:
@@ -53,12 +56,15 @@ class RangeBearingCPConfig:
     command_lag_s: float = 0.18
     #: A command older than this is no longer trusted (largest odometry gap seen: 1.03 s).
     max_hold_s: float = 1.1
-    #: Heading transient a: |E(t1) - E(t0)| <= a + b dt + r int|w| over every pair of
-    #: instants, E the integrated heading's error (b, r below): 99.99th percentile of the
-    #: pairs' residual over 5 x 888 s: 0.10 rad (the largest, 0.134, at motion-capture
-    #: glitches).
-    heading_transient_rad: float = 0.10
-    heading_drift_radps: float = 0.03  # b
+    #: Heading transient a: |E(t1) - E(t0)| <= a + b dt + b_m int|v| + r int|w| over
+    #: every pair of instants up to 10 s apart, E the integrated heading's error (b, b_m,
+    #: r below): a is exceeded by 5e-5 of the 20 million pairs of 5 x 888 s (0.116 rad;
+    #: 0.111 over pairs up to 60 s apart; the largest residual, 0.157, at motion-capture
+    #: glitches). A robot that drives straight keeps its heading: the drift is mostly per
+    #: metre driven, not per second (with b = 0.03 rad/s and no b_m, a = 0.10).
+    heading_transient_rad: float = 0.12
+    heading_drift_radps: float = 0.005  # b
+    heading_drift_per_m: float = 0.1  # b_m, rad per metre of commanded path
     heading_turn_rel: float = 0.3  # r, fraction of the commanded turn
     yaw_rate_cap_radps: float = 0.7  # fastest turn seen: 0.61 rad/s
     #: Path length L in [(1 - lo) S - p, (1 + hi) S + p], p = path_abs + path_drift dt.
@@ -71,18 +77,33 @@ class RangeBearingCPConfig:
     slack_drift_mps: float = 0.005
     speed_cap_mps: float = 0.1  # fastest seen: 0.084 m/s
     # -- range-bearing (localization.range_bearing) --
-    #: True range in [(1 - lo) r - abs, (1 + hi) r + abs]: true/measured range is in
-    #: [0.931, 1.147] for 99.9 % of landmark sightings, [0.909, 1.151] for robots.
-    range_rel_lo: float = 0.10
-    range_rel_hi: float = 0.16
+    #: What the camera's range is: "depth" (it ranges a tube by its apparent size, so it
+    #: reports the depth r cos(psi) along the optical axis, psi the bearing) or "range"
+    #: (the Euclidean range r). With "depth" the bounds below hold r cos(psi_m) (psi_m the
+    #: bearing measured) and the true range is in [lo, hi] / cos(psi_m).
+    range_model: str = "depth"
+    #: Landmarks: the true range (depth) is in [(1 - lo) rho - abs, (1 + hi) rho + abs]
+    #: for a measured rho. Depth model: true depth / measured is in [0.918, 1.004] (with
+    #: abs = 0.02 m) for 99.9 % of the landmark sightings (0.05th and 99.95th
+    #: percentiles; as a range [0.931, 1.147], so 2.6x wider: the -psi^2 / 2 of cos psi).
+    range_rel_lo: float = 0.085
+    range_rel_hi: float = 0.01
     range_abs_m: float = 0.02
-    #: Bearing error = a part common to every bearing of one instant (the camera's own
-    #: heading error: one per frame) + a part per bearing. Over 10530 frames (19268
-    #: landmark and robot bearings) a common part within 0.08 rad leaves every bearing
-    #: within 0.03 rad of it but for 14 gross outliers (0.07 %); the README's 99.9th
-    #: percentile of the whole error is 0.078 rad.
-    bearing_common_rad: float = 0.08
-    bearing_rad: float = 0.03
+    #: Robots seen (their tubes read farther): [0.891, 0.985] as a depth; as a range
+    #: [0.909, 1.151] (then the landmarks' range bounds are used for robots too).
+    robot_range_rel_lo: float = 0.115
+    robot_range_rel_hi: float = -0.01
+    #: Bearing error = a part common to every bearing of one frame (the camera's own
+    #: heading error, with the motion capture's heading jitter) + a part per bearing, a
+    #: floor plus a lateral error of the tube's image over the range (the EKF's noise
+    #: model has the same shape: 0.0095^2 + (0.024 / r)^2). Over 10530 frames (19268
+    #: landmark and robot bearings) a common part within 0.06 rad leaves every bearing
+    #: within 0.015 + 0.02 / r rad of it (0.028 at 1.5 m, 0.019 at 5 m) but for 18
+    #: (0.093 %, of which 14 gross outliers: barcodes misread); with a flat per-bearing
+    #: bound, 0.05 and 0.03 (0.099 %).
+    bearing_common_rad: float = 0.06
+    bearing_rad: float = 0.015
+    bearing_lateral_m: float = 0.02
     #: Landmarks' surveyed positions +- this many of their standard deviations.
     landmark_sigmas: float = 5.0
     #: A peer's published box is widened by these times its age.
@@ -113,6 +134,8 @@ class RangeBearingCPConfig:
     heading_sectors: int = 24
 
     def __post_init__(self) -> None:
+        if self.range_model not in RANGE_MODELS:
+            raise ValueError(f"range_model must be one of {RANGE_MODELS}, got {self.range_model!r}")
         if self.outliers < 0 or self.window_s <= 0 or self.max_states < 2 or self.iterations < 1:
             raise ValueError(
                 "RangeBearingCPConfig: outliers >= 0, window_s > 0, max_states >= 2 and "

@@ -6,12 +6,16 @@ their stamps. Seconds on the data's own clock, metres, radians.
 - ``localization.velocity_odometry``: the commands integrated between states, and the
   odometry's error model;
 - ``localization.range_bearing``: the observation contractor;
+- ``localization.cp_rb_sightings``: a camera's sightings as intervals (the bounds of
+  ``RangeBearingCPConfig``: the range as a depth r cos(bearing), the bearing bound
+  growing at short range, peers' boxes aged);
 - ``localization.cp_rb_solve``: the window's contraction, q-relaxed over every
   observation, with the heading cut into pieces (sectors when it is unknown);
 - here: :class:`RangeBearingCP`, which keeps the window (one state per observation
-  instant, solved every ``solve_period_s``; a state leaving the window becomes the next
-  one's prior), turns observations into intervals with the bounds of
-  ``RangeBearingCPConfig``, names the inconsistent ones, and fails gracefully.
+  instant, solved every ``solve_period_s``; the solution's heading pieces are kept, each
+  with its boxes over the window, and a state leaving the window becomes the next one's
+  prior, one box per piece), names the inconsistent observations, and fails
+  gracefully.
 
 **Graceful failure.** A solve that comes out empty proves that more than q observations
 of the window (or a prior built from an earlier window) broke their bounds. Then, in
@@ -46,6 +50,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from localization.cp_config import RangeBearingCPConfig
+from localization.cp_rb_sightings import Observation, PeerBox, Sightings
 from localization.cp_rb_solve import WindowProblem, WindowSolution, solve_window
 from localization.interval_trig import TWO_PI
 from localization.velocity_odometry import (
@@ -53,7 +58,7 @@ from localization.velocity_odometry import (
     StepBounds,
     StepIntegral,
     combine,
-    predict_boxes,
+    predict_hulls,
     step_bounds,
 )
 
@@ -62,6 +67,13 @@ _INF = np.inf
 
 def _unknown() -> np.ndarray:
     return np.array([[-_INF] * 4, [_INF] * 4])
+
+
+def _pieces_at(sol: WindowSolution, k: int) -> np.ndarray:
+    """(B, 2, 4): x, y, th, c of state ``k`` in every piece of ``sol``."""
+    return np.stack(
+        [sol.px[:, :, k], sol.py[:, :, k], sol.pth[:, :, k], sol.pc[:, :, k]], -1
+    ).transpose(1, 0, 2)
 
 
 @dataclass(frozen=True)
@@ -83,32 +95,6 @@ class RBBox:
             t = th + TWO_PI * np.ceil((lo - th) / TWO_PI)  # the first branch >= lo
             in_th = bool(t <= hi)
         return self.x[0] <= x <= self.x[1] and self.y[0] <= y <= self.y[1] and in_th
-
-
-@dataclass(frozen=True)
-class Observation:
-    """One range-bearing observation as the window keeps it: the other party's box,
-    range and bearing intervals, and its name."""
-
-    t: float
-    kind: str  # landmark | peer_seen | seen_by
-    subject: int  # landmark or peer subject #
-    own: bool  # this robot observes (else it is observed)
-    other: tuple[float, float, float, float, float, float]  # x, y, th (lo, hi) of the other
-    rho: tuple[float, float]
-    beta: tuple[float, float]
-
-
-@dataclass(frozen=True)
-class PeerBox:
-    """A peer's published box with its stamp, and when the peer last had to weaken its
-    guarantee (relaxed, reinit or lost: its box may then be wrong)."""
-
-    t: float
-    x: tuple[float, float]
-    y: tuple[float, float]
-    th: tuple[float, float]
-    alert_t: float = -np.inf
 
 
 @dataclass
@@ -134,7 +120,8 @@ class RangeBearingCP:
         self.landmarks = dict(landmarks or {})
         self.odo = CommandIntegrator(self.cfg.command_lag_s, self.cfg.max_hold_s)
         self._states: list[_State] = []
-        self._prior = _unknown()  # (2, 4): x, y, th, c of the window's first state
+        #: (P, 2, 4): x, y, th, c of the window's first state, per piece (a sub-paving)
+        self._prior = _unknown()[None]
         self._sol: WindowSolution | None = None
         self.status = "unknown"
         self.outliers: list[tuple[float, str, int]] = []  # (t, kind, subject), each once
@@ -143,7 +130,8 @@ class RangeBearingCP:
         self.solves = 0
         #: when the guarantee last had to be weakened (relaxed, reinit, lost)
         self.last_alert = -_INF
-        self.skipped: dict[str, int] = {}
+        self.sightings = Sightings(self.cfg, self.landmarks)
+        self.skipped = self.sightings.skipped  # sightings refused, by reason
         self._heard: list[tuple[int, float, float, PeerBox]] = []  # seen by peers, not yet used
 
     # -- inputs --------------------------------------------------------------------
@@ -153,70 +141,19 @@ class RangeBearingCP:
     def advance(self, t: float) -> None:
         self.odo.advance(t)
 
-    def _rho(self, r: float) -> tuple[float, float]:
-        c = self.cfg
-        return (
-            max(0.0, (1.0 - c.range_rel_lo) * r - c.range_abs_m),
-            (1.0 + c.range_rel_hi) * r + c.range_abs_m,
-        )
-
-    def _beta(self, b: float) -> tuple[float, float]:
-        return (b - self.cfg.bearing_rad, b + self.cfg.bearing_rad)
-
-    def _valid(self, r: float, b: float) -> bool:
-        ok = np.isfinite(r) and np.isfinite(b) and r >= 0.0
-        if not ok:
-            self.skipped["invalid_observation"] = self.skipped.get("invalid_observation", 0) + 1
-        return bool(ok)
-
     def landmark(self, t: float, subject: int, r: float, b: float) -> Observation | None:
         """This robot sees landmark ``subject`` at range ``r``, bearing ``b``."""
-        lm = self.landmarks.get(int(subject))
-        if lm is None or not self._valid(r, b):
-            if lm is None:
-                self.skipped["unknown_landmark"] = self.skipped.get("unknown_landmark", 0) + 1
-            return None
-        k = self.cfg.landmark_sigmas
-        lx, ly, sx, sy = lm
-        other = (lx - k * sx, lx + k * sx, ly - k * sy, ly + k * sy, -_INF, _INF)
-        return Observation(t, "landmark", int(subject), True, other, self._rho(r), self._beta(b))
-
-    def _aged(self, t: float, box: PeerBox) -> tuple[float, ...]:
-        age = abs(t - box.t)
-        g, gt = self.cfg.peer_speed_mps * age, self.cfg.peer_yaw_rate_radps * age
-        return (
-            box.x[0] - g,
-            box.x[1] + g,
-            box.y[0] - g,
-            box.y[1] + g,
-            box.th[0] - gt,
-            box.th[1] + gt,
-        )
-
-    def _trusted(self, t: float, box: PeerBox) -> bool:
-        ok = t - box.alert_t >= self.cfg.peer_quarantine_s
-        if not ok:
-            self.skipped["peer_box_quarantined"] = self.skipped.get("peer_box_quarantined", 0) + 1
-        return ok
+        return self.sightings.landmark(t, subject, r, b)
 
     def peer_seen(
         self, t: float, peer: int, r: float, b: float, box: PeerBox
     ) -> Observation | None:
         """This robot sees ``peer``, whose last published box is ``box``."""
-        if not self._valid(r, b) or not self._trusted(t, box):
-            return None
-        return Observation(
-            t, "peer_seen", int(peer), True, self._aged(t, box), self._rho(r), self._beta(b)
-        )
+        return self.sightings.peer_seen(t, peer, r, b, box)
 
     def seen_by(self, t: float, peer: int, r: float, b: float, box: PeerBox) -> Observation | None:
         """``peer`` (box ``box``, with its heading) sees this robot at ``r``, ``b``."""
-        if not self._valid(r, b) or not self._trusted(t, box):
-            return None
-        aged = list(self._aged(t, box))
-        g = self.cfg.bearing_common_rad  # the peer's camera heading: its heading +- this
-        aged[4], aged[5] = aged[4] - g, aged[5] + g
-        return Observation(t, "seen_by", int(peer), False, tuple(aged), self._rho(r), self._beta(b))
+        return self.sightings.seen_by(t, peer, r, b, box)
 
     def hear(self, peer: int, r: float, b: float, box: PeerBox) -> None:
         """``peer`` (box ``box``, stamped when it saw this robot) saw this robot at range
@@ -255,15 +192,17 @@ class RangeBearingCP:
             if sol is not None and sol.x.shape[1] < 2:
                 break  # state 1 not solved yet: keep state 0 until it is
             if sol is not None:
-                # state 1's solved box holds what the window knew about state 0
-                self._prior = np.stack(
-                    [sol.x[:, 1], sol.y[:, 1], sol.th[:, 1], sol.c[:, 1]], axis=1
-                )
+                # state 1's solved pieces hold what the window knew about state 0
+                self._prior = _pieces_at(sol, 1)
                 self._sol = replace(
-                    sol, x=sol.x[:, 1:], y=sol.y[:, 1:], th=sol.th[:, 1:], c=sol.c[:, 1:]
+                    sol,
+                    **{
+                        f: getattr(sol, f)[..., 1:]
+                        for f in ("x", "y", "th", "c", "px", "py", "pth", "pc")
+                    },
                 )
             else:
-                self._prior = _unknown()
+                self._prior = _unknown()[None]
             del s[0]
             s[0].step, s[0].raw = None, None
 
@@ -276,16 +215,24 @@ class RangeBearingCP:
             f: np.array([getattr(b, f) for b in steps], dtype=float)
             for f in StepBounds.__dataclass_fields__
         }
-        hard = np.empty((4, 2, n))
-        hard[:, 0], hard[:, 1] = -_INF, _INF
-        if prior:
-            hard[:, :, 0] = self._prior.T
+        # Hard boxes (4, 2, P, n) of P pieces: the previous solution's (warm), else the
+        # prior's pieces at the first state, else one unknown piece.
         sol = self._sol
-        if warm and sol is not None:
+        warm = warm and sol is not None
+        pr = self._prior if prior else _unknown()[None]
+        npc = sol.px.shape[1] if warm else pr.shape[0]
+        hard = np.empty((4, 2, npc, n))
+        hard[:, 0], hard[:, 1] = -_INF, _INF
+        if warm:
             k = min(sol.x.shape[1], n)
-            for i, v in enumerate((sol.x, sol.y, sol.th, sol.c)):
-                hard[i, 0, :k] = np.maximum(hard[i, 0, :k], v[0, :k])
-                hard[i, 1, :k] = np.minimum(hard[i, 1, :k], v[1, :k])
+            for i, v in enumerate((sol.px, sol.py, sol.pth, sol.pc)):
+                hard[i, :, :, :k] = v[:, :, :k]
+            if prior:  # the prior (hull of its pieces) at the first state too
+                lo, hi = pr[:, 0].min(axis=0), pr[:, 1].max(axis=0)
+                hard[:, 0, :, 0] = np.maximum(hard[:, 0, :, 0], lo[:, None])
+                hard[:, 1, :, 0] = np.minimum(hard[:, 1, :, 0], hi[:, None])
+        else:
+            hard[:, :, :, 0] = pr.transpose(2, 1, 0)
         obs = [(i, o) for i, st in enumerate(s) for o in st.obs]
         m = len(obs)
         b = np.zeros((7, 2, m))
@@ -315,7 +262,7 @@ class RangeBearingCP:
             c.bearing_common_rad, c.heading_piece_rad, c.max_pieces, c.heading_sectors,
         )  # fmt: skip
         if not sol.empty and sol.rebased:
-            self._prior[:, 2:] = _unknown()[:, 2:]  # the headings' representation changed
+            self._prior[:, :, 2:] = _unknown()[None, :, 2:]  # the headings' representation changed
         return sol
 
     def _solve(self) -> None:
@@ -336,13 +283,13 @@ class RangeBearingCP:
         if sol.empty:
             sol, status = self._run(False, False, q), "reinit"
             if not sol.empty:
-                self._prior = _unknown()
+                self._prior = _unknown()[None]
         self._name(sol)
         if sol.empty:
             self.events.append((t, "lost"))
             last = self._states[-1]
             self._states = [_State(last.t, last.theta, None, [])]
-            self._prior = _unknown()
+            self._prior = _unknown()[None]
             self._sol = None
             self.status = "lost"
             self.last_alert = t
@@ -368,8 +315,9 @@ class RangeBearingCP:
 
     # -- outputs -------------------------------------------------------------------
     def latest(self) -> tuple[float, float, np.ndarray, StepIntegral] | None:
-        """(t, commanded heading, (2, 4) box x, y, th, c) of the latest solved state,
-        and the commands' integral from it to the latest integrated instant."""
+        """(t, commanded heading, (B, 2, 4) boxes x, y, th, c of the B pieces) of the
+        latest solved state, and the commands' integral from it to the latest integrated
+        instant."""
         if self._sol is None or not self._states:
             return None
         s = self._sol
@@ -378,18 +326,17 @@ class RangeBearingCP:
         for st in self._states[k + 1 :]:  # states not solved yet
             since = combine(since, st.raw)
         since = combine(since, self.odo.peek())
-        box = np.stack([s.x[:, k], s.y[:, k], s.th[:, k], s.c[:, k]], axis=1)
-        return self._states[k].t, self._states[k].theta, box, since
+        return self._states[k].t, self._states[k].theta, _pieces_at(s, k), since
 
     def box(self) -> RBBox:
-        """The box at the latest integrated instant (predicted from the latest solved
-        state)."""
+        """The box at the latest integrated instant (each piece of the latest solved
+        state predicted, and their hull)."""
         t = self.odo.t if self.odo.t is not None else 0.0
         ref = self.latest()
         if ref is None:
             return RBBox(t, (-_INF, _INF), (-_INF, _INF), (-_INF, _INF), self.status)
         _, theta0, b, st = ref
-        out = predict_boxes(b[None], np.array([theta0]), [st], self.cfg)
+        out = predict_hulls([b], np.array([theta0]), [st], self.cfg)
         return RBBox(
             t,
             (out[0, 0, 0], out[0, 1, 0]),
@@ -399,8 +346,9 @@ class RangeBearingCP:
         )
 
     def snapshot(self) -> tuple[float, float, np.ndarray, StepIntegral, str, float] | None:
-        """What :func:`velocity_odometry.predict_boxes` needs to compute the box at the
-        latest integrated instant later, in bulk (for scoring many instants)."""
+        """What :func:`velocity_odometry.predict_hulls` needs to compute the box at the
+        latest integrated instant later, in bulk (for scoring many instants): t,
+        commanded heading, the (B, 2, 4) pieces, the step since, status, last alert."""
         ref = self.latest()
         if ref is None:
             return None

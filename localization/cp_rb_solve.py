@@ -24,22 +24,9 @@ bounds** (or a prior from an earlier window did). An observation whose contracti
 empty, or misses the final box, is named inconsistent; more than q of them leave some
 state empty, which the caller reports instead of a box.
 
-**Heading pieces.** Boxes lose the coupling of heading and position: a heading interval
-of width w turns every range-bearing observation at range r into a box some r w wide,
-and with the heading unknown a bearing says nothing at all. So the newest state's
-heading is cut into pieces no wider than ``piece_rad`` (a one-dimensional paving), the
-window is solved for every piece at once (a batch axis through every array), and the
-results of the pieces not proven empty are joined (hull). Sound: every solution lies in
-some piece, and that piece's solve keeps it.
-
-**Headings that recover.** Headings are real intervals in one representation (shifting
-all of them by 2 pi k changes nothing). When the newest offset is almost a whole turn
-wide (lost, or never known), the pieces are sectors of [-pi, pi) instead: any solution
-has a 2 pi k shift whose newest heading lies in one of them. Each sector carries its own
-representation along the chains (the heading priors are met with it on every 2 pi
-branch), so every bearing meets it on one branch, and the window's observations rule
-out the sectors they cannot all (but q) agree with. The survivors are joined in the
-representation that leaves out the largest gap of the circle between them.
+**Heading pieces** (``localization.cp_rb_pieces``): the newest camera heading is cut
+into pieces (sectors of the circle when it is unknown), solved at once along a batch
+axis and joined; the live pieces are kept for the next solve (a sub-paving).
 """
 
 from __future__ import annotations
@@ -52,14 +39,12 @@ import numpy as np
 
 from localization import interval_kernels as K
 from localization.chain import chain_k, leave_out, projections, relaxed_chain_at
-from localization.interval import IV, meet_angle
+from localization.cp_rb_pieces import any_empty, heading_pieces, meet_box, widen_box
 from localization.interval_trig import TWO_PI
 from localization.range_bearing import AX, AY, OTH, OX, OY, contract_observation
 from localization.velocity_odometry import GUARD, displacements
 
 _INF = np.inf
-#: A newest offset wider than this: the heading is unknown; solve by sectors.
-LOST_WIDTH = TWO_PI - 0.5
 #: Above this many hypotheses (m choose q) the relaxation is done axis by axis.
 MAX_HYPOTHESES = 4000
 
@@ -68,7 +53,8 @@ MAX_HYPOTHESES = 4000
 class WindowProblem:
     """The window as the solver sees it: n states, n - 1 steps, m observations.
 
-    Boxes are (2, n) arrays (lo row, hi row). ``obs`` is (7, 2, m) in the row order of
+    Hard boxes are (2, n) arrays (lo row, hi row), or (2, P, n) for P pieces (a
+    sub-paving: the truth lies in one of them, each a box over the whole window). ``obs`` is (7, 2, m) in the row order of
     ``localization.range_bearing``; the robot's own rows (OX, OY, OTH where ``own``,
     else AX, AY) are filled by the solver from the state boxes."""
 
@@ -80,7 +66,7 @@ class WindowProblem:
     l_hi: np.ndarray
     slack: np.ndarray
     cap: np.ndarray
-    hx: np.ndarray  # (2, n) hard boxes
+    hx: np.ndarray  # (2, n) or (2, P, n) hard boxes
     hy: np.ndarray
     hth: np.ndarray
     hc: np.ndarray
@@ -99,23 +85,12 @@ class WindowSolution:
     empty: bool  # more than q observations (or a prior) wrong: no box
     rebased: bool  # the heading was unknown: solved by sectors, a new representation
     pieces: int  # heading pieces solved
-
-
-def _meet(a: np.ndarray, b) -> np.ndarray:
-    out = np.empty(np.broadcast_shapes(np.shape(a), (2,) + np.shape(b[0])))
-    if out.ndim == 1:
-        return np.array([max(a[0], b[0]), min(a[1], b[1])])
-    np.maximum(a[0], b[0], out=out[0])
-    np.minimum(a[1], b[1], out=out[1])
-    return out
-
-
-def _dead(*boxes: np.ndarray) -> np.ndarray:
-    """Per piece (axis 1 of (2, B, n) boxes): some box is empty."""
-    out = np.zeros(boxes[0].shape[1], bool)
-    for b in boxes:
-        out |= np.any(~(b[0] <= b[1]), axis=-1)
-    return out
+    #: the live pieces' boxes (2, B, n) of x, y, th, c (in the representation of the
+    #: hull above): the sub-paving the next solve starts from
+    px: np.ndarray | None = None
+    py: np.ndarray | None = None
+    pth: np.ndarray | None = None
+    pc: np.ndarray | None = None
 
 
 def _relaxed_per_state(
@@ -134,66 +109,6 @@ def _relaxed_per_state(
     out[0] = np.partition(p_lo, m - 1 - q, axis=-2)[..., m - 1 - q, :]
     out[1] = np.partition(p_hi, q, axis=-2)[..., q, :]
     return out
-
-
-def _offset_of(th: np.ndarray, theta: np.ndarray, half_a: float) -> np.ndarray:
-    """Offsets c = th - Theta - s, |s| <= half_a."""
-    return np.stack(K.sub(th[0], th[1], theta - half_a - GUARD, theta + half_a + GUARD))
-
-
-def _widen(b: np.ndarray, r: float) -> np.ndarray:
-    out = np.empty(np.shape(b))
-    out[0], out[1] = K.add(b[0], b[1], -r, r)
-    return out
-
-
-def _pieces(
-    p: WindowProblem, half_a: float, beta_c: float, piece_rad: float, max_pieces: int, sectors: int
-):
-    """The hard boxes (2, B, n) of the offsets, headings and camera headings of every
-    piece of the newest camera heading, and whether the pieces are sectors."""
-    n = p.theta.shape[0]
-    k = n - 1
-    c0 = _meet(p.hc, _offset_of(p.hth, p.theta, half_a))
-    c0 = _meet(c0, chain_k(c0[0], c0[1], -p.dc, p.dc))
-    lost = not c0[1, k] - c0[0, k] < LOST_WIDTH
-    if not lost:
-        t0 = _meet(
-            p.hth[:, k],
-            K.add(p.theta[k] + c0[0, k], p.theta[k] + c0[1, k], -half_a - GUARD, half_a + GUARD),
-        )
-        f0 = _widen(t0, beta_c)
-        b = int(min(max(np.ceil((f0[1] - f0[0]) / piece_rad), 1), max_pieces))
-        e = f0[0] + (f0[1] - f0[0]) * np.arange(b + 1) / b
-        lo, hi = np.maximum(K.down(e[:-1]), f0[0]), np.minimum(K.up(e[1:]), f0[1])
-        lo[0], hi[-1] = f0[0], f0[1]
-        hc = np.repeat(c0[:, None, :], b, axis=1)
-        hth = np.repeat(p.hth[:, None, :], b, axis=1)
-    else:
-        # Sectors of [-pi, pi) for the newest camera heading; every hard heading box met
-        # with each sector's representation (carried along the chain) on every branch.
-        b = sectors
-        e = -np.pi + TWO_PI * np.arange(b + 1) / b
-        lo, hi = K.down(e[:-1] - 1e-9), K.up(e[1:] + 1e-9)
-        anchor = np.empty((2, b, n))
-        anchor[0], anchor[1] = -_INF, _INF
-        tl, th = K.add(lo, hi, -beta_c, beta_c)
-        anchor[:, :, k] = K.sub(tl, th, p.theta[k] - half_a - GUARD, p.theta[k] + half_a + GUARD)
-        hc = _meet(np.stack(chain_k(anchor[0], anchor[1], -p.dc, p.dc)), anchor)
-        hth = np.stack(K.add(p.theta + hc[0], p.theta + hc[1], -half_a - GUARD, half_a + GUARD))
-        for h, ph in ((hc, p.hc), (hth, p.hth)):
-            fin = np.isfinite(ph[0]) & np.isfinite(ph[1])
-            if fin.any():
-                met = meet_angle(IV(h[0][:, fin], h[1][:, fin]), IV(ph[0, fin], ph[1, fin]))
-                h[0][:, fin], h[1][:, fin] = met.lo, met.hi
-    hph = np.empty((2, b, n))
-    hph[0], hph[1] = -_INF, _INF
-    hph[0, :, k], hph[1, :, k] = lo, hi
-    tl, th = K.add(lo, hi, -beta_c, beta_c)
-    hth[0, :, k], hth[1, :, k] = np.maximum(hth[0, :, k], tl), np.minimum(hth[1, :, k], th)
-    cl, ch = K.sub(tl, th, p.theta[k] - half_a - GUARD, p.theta[k] + half_a + GUARD)
-    hc[0, :, k], hc[1, :, k] = np.maximum(hc[0, :, k], cl), np.minimum(hc[1, :, k], ch)
-    return hc, hth, hph, lost
 
 
 def _hypotheses(m: int, q: int) -> np.ndarray | None:
@@ -222,6 +137,8 @@ def _relax(
 
 def _solve_pieces(
     p: WindowProblem,
+    hx,
+    hy,
     hc,
     hth,
     hph,
@@ -241,10 +158,9 @@ def _solve_pieces(
     o_own = np.flatnonzero(own)
     t_at = p.theta[at]
     hyps = _hypotheses(m, q)
-    x = np.repeat(p.hx[:, None, :], b, axis=1)
-    y = np.repeat(p.hy[:, None, :], b, axis=1)
+    x, y = hx.copy(), hy.copy()
     th, c, ph = hth.copy(), hc.copy(), hph.copy()
-    c = _meet(c, chain_k(c[0], c[1], -p.dc, p.dc))
+    c = meet_box(c, chain_k(c[0], c[1], -p.dc, p.dc))
     obs = np.repeat(p.obs[:, :, None, :], b, axis=2)  # (7, 2, B, m)
     dcl, dch = -p.dc, p.dc
     bad = np.zeros((b, m), bool)
@@ -253,18 +169,18 @@ def _solve_pieces(
     for _ in range(iterations):
         old = np.concatenate([x, y, c])
         tl, tu = K.add(p.theta + c[0], p.theta + c[1], -half_a - GUARD, half_a + GUARD)
-        th = _meet(th, (tl, tu))
-        ph = _meet(ph, _widen(th, beta_c))
-        th = _meet(th, _widen(ph, beta_c))
+        th = meet_box(th, (tl, tu))
+        ph = meet_box(ph, widen_box(th, beta_c))
+        th = meet_box(th, widen_box(ph, beta_c))
         wl, wh = K.add(c[0, :, :-1], c[1, :, :-1], dcl, dch)
         vl, vh = K.add(c[0, :, 1:], c[1, :, 1:], dcl, dch)
         dx_l, dx_h, dy_l, dy_h = displacements(
             p.theta[:-1], p.hmin, p.hmax, np.maximum(wl, vl), np.minimum(wh, vh),
             half_a, p.l_lo, p.l_hi, p.slack, p.cap,
         )  # fmt: skip
-        x = _meet(x, chain_k(x[0], x[1], dx_l, dx_h))
-        y = _meet(y, chain_k(y[0], y[1], dy_l, dy_h))
-        dead |= _dead(x, y, th, c) | _dead(ph)
+        x = meet_box(x, chain_k(x[0], x[1], dx_l, dx_h))
+        y = meet_box(y, chain_k(y[0], y[1], dy_l, dy_h))
+        dead |= any_empty(x, y, th, c) | any_empty(ph)
         if m == 0 or dead.all():
             break
         live = ~dead
@@ -280,7 +196,7 @@ def _solve_pieces(
         by = con[ry, :, :, cols].transpose(1, 2, 0)
         bf = np.where(own, con[OTH], np.array([-_INF, _INF])[:, None, None])  # camera heading
         bf = np.where(bad, np.array([_INF, -_INF])[:, None, None], bf)
-        bt = _widen(bf, beta_c)
+        bt = widen_box(bf, beta_c)
         bc = np.stack(K.sub(bt[0], bt[1], t_at - half_a - GUARD, t_at + half_a + GUARD))
         px = projections((bx[0], bx[1]), at, (dx_l, dx_h))
         py = projections((by[0], by[1]), at, (dy_l, dy_h))
@@ -291,19 +207,19 @@ def _solve_pieces(
             np.where(at_state, bf[1][..., None], _INF),
         )
         if hyps is None:  # too many hypotheses: axis by axis
-            x = _meet(x, relaxed_chain_at((x[0], x[1]), (bx[0], bx[1]), at, (dx_l, dx_h), q))
-            y = _meet(y, relaxed_chain_at((y[0], y[1]), (by[0], by[1]), at, (dy_l, dy_h), q))
-            c = _meet(c, relaxed_chain_at((c[0], c[1]), (bc[0], bc[1]), at, (dcl, dch), q))
-            ph = _meet(ph, _relaxed_per_state(bf[0], bf[1], at, n, q))
-            th = _meet(th, _widen(ph, beta_c))
-            dead |= _dead(x, y, th, c) | _dead(ph)
+            x = meet_box(x, relaxed_chain_at((x[0], x[1]), (bx[0], bx[1]), at, (dx_l, dx_h), q))
+            y = meet_box(y, relaxed_chain_at((y[0], y[1]), (by[0], by[1]), at, (dy_l, dy_h), q))
+            c = meet_box(c, relaxed_chain_at((c[0], c[1]), (bc[0], bc[1]), at, (dcl, dch), q))
+            ph = meet_box(ph, _relaxed_per_state(bf[0], bf[1], at, n, q))
+            th = meet_box(th, widen_box(ph, beta_c))
+            dead |= any_empty(x, y, th, c) | any_empty(ph)
         else:  # every hypothesis jointly: a state box per hypothesis, then their hull
             hx, hy = _relax(x, px, q, hyps), _relax(y, py, q, hyps)
             hcc, hf = _relax(c, pc, q, hyps), _relax(ph, pf, q, hyps)
             tl, tu = K.add(p.theta + hcc[0], p.theta + hcc[1], -half_a - GUARD, half_a + GUARD)
-            ht = _meet(_meet(th[:, :, None, :], (tl, tu)), _widen(hf, beta_c))
-            hf = _meet(hf, _widen(ht, beta_c))
-            hcc = _meet(
+            ht = meet_box(meet_box(th[:, :, None, :], (tl, tu)), widen_box(hf, beta_c))
+            hf = meet_box(hf, widen_box(ht, beta_c))
+            hcc = meet_box(
                 hcc, K.sub(ht[0], ht[1], p.theta - half_a - GUARD, p.theta + half_a + GUARD)
             )
             alive = ~(_dead4(hx) | _dead4(hy) | _dead4(hcc) | _dead4(ht) | _dead4(hf))  # (B, H)
@@ -362,8 +278,12 @@ def solve_window(
     camera heading cut into pieces (module doc). ``half_a`` is half the heading
     transient, ``beta_c`` the bound of the bearing error common to one instant."""
     with np.errstate(over="ignore", invalid="ignore"):
-        hc, hth, hph, lost = _pieces(p, half_a, beta_c, piece_rad, max_pieces, sectors)
-        x, y, th, c, dead, bad = _solve_pieces(p, hc, hth, hph, q, half_a, beta_c, iterations, tol)
+        hx, hy, hc, hth, hph, lost = heading_pieces(
+            p.theta, p.dc, p.hx, p.hy, p.hth, p.hc, half_a, beta_c, piece_rad, max_pieces, sectors
+        )
+        x, y, th, c, dead, bad = _solve_pieces(
+            p, hx, hy, hc, hth, hph, q, half_a, beta_c, iterations, tol
+        )
     live = np.flatnonzero(~dead)
     m = p.at.shape[0]
     b = hc.shape[1]
@@ -381,4 +301,4 @@ def solve_window(
         th, c = th[:, live], c[:, live]
     x, y = x[:, live], y[:, live]
     hull = [np.stack([v[0].min(axis=0), v[1].max(axis=0)]) for v in (x, y, th, c)]
-    return WindowSolution(*hull, np.all(bad[live], axis=0), False, lost, b)
+    return WindowSolution(*hull, np.all(bad[live], axis=0), False, lost, b, x, y, th, c)

@@ -13,7 +13,7 @@ ignored.
 Events at the same instant run in a fixed order (ticks, then observations; robots by
 subject #), so a run is reproducible bit for bit. Ticks are where the boxes are reported
 (and scored): every ``tick_s`` from the run's start, each robot's box predicted from its
-latest solved state; they are computed in bulk at the end (:func:`predict_boxes`).
+latest solved state; they are computed in bulk at the end (:func:`predict_hulls`).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import numpy as np
 from localization.cp_config import RangeBearingCPConfig
 from localization.cp_rb import PeerBox, RangeBearingCP
 from localization.mrclam import MrclamRun
-from localization.velocity_odometry import predict_boxes
+from localization.velocity_odometry import predict_hulls
 
 _INF = np.inf
 
@@ -99,7 +99,7 @@ def run_cp(
         if p is None or isinstance(p, PeerBox):
             return p
         t, theta0, b, st, _, alert = p
-        out = predict_boxes(b[None], np.array([theta0]), [st], cfg)[0]
+        out = predict_hulls([b], np.array([theta0]), [st], cfg)[0]
         box = PeerBox(
             t, (out[0, 0], out[1, 0]), (out[0, 1], out[1, 1]), (out[0, 2], out[1, 2]), alert
         )
@@ -151,10 +151,10 @@ def _track(cp: RangeBearingCP, snaps: list, cfg: RangeBearingCPConfig, n_obs: in
     age = np.full(n, np.inf)
     idx = [i for i, (_, s) in enumerate(snaps) if s is not None]
     if idx:
-        b = np.stack([snaps[i][1][2] for i in idx])
+        b = [snaps[i][1][2] for i in idx]
         theta0 = np.array([snaps[i][1][1] for i in idx])
         steps = [snaps[i][1][3] for i in idx]
-        box[idx] = predict_boxes(b, theta0, steps, cfg)
+        box[idx] = predict_hulls(b, theta0, steps, cfg)
         status[idx] = [snaps[i][1][4] for i in idx]
         age[idx] = [snaps[i][1][3].dt for i in idx]
     return CpTrack(t, box, status, age, list(cp.outliers), list(cp.events), cp.solves, n_obs)

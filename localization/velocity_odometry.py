@@ -7,14 +7,15 @@ constraints between consecutive states (``localization.cp_rb_solve``).
 ``lag_s`` after them (MRCLAM: the motion trails the commands by 0.16-0.20 s). Over a
 step the integrator gives the commanded path length S = int v, the heading change
 H = int w, the lowest and highest commanded heading reached inside the step (relative to
-its start), the turn int |w|, and U, the time during which no command was fresh (older
+its start), the turn int |w|, the distance int |v|, and U, the time during which no command was fresh (older
 than ``max_hold_s``, or none yet) and the motion is only bounded by the speed caps.
 
 **Heading error model.** The error of the integrated heading E(t) = theta(t) - H(t) is a
 slow drift plus a bounded transient (the response to each command change):
-E = c + s with |s| <= a/2 and |c(t1) - c(t0)| <= b |t1 - t0| + r int |w| + w_cap U
-(a drift rate b and a fraction r of the commanded turn). This is equivalent to the pair
-condition |E(t1) - E(t0)| <= a + b dt + r int|w| over every pair of instants, which is
+E = c + s with |s| <= a/2 and |c(t1) - c(t0)| <= b |t1 - t0| + b_m int |v| + r int |w|
++ w_cap U (a drift rate b, a drift b_m per metre driven and a fraction r of the
+commanded turn). This is equivalent to the pair condition
+|E(t1) - E(t0)| <= a + b dt + b_m int|v| + r int|w| over every pair of instants, which is
 what the data shows (transients do not add up step after step); the solver carries c as
 an exact chain and s per state, so a window of many short steps is not charged a per
 step. Per step the offset increment bound is ``dc`` below.
@@ -55,13 +56,14 @@ class StepIntegral:
     hmax: float = 0.0  # highest (>= 0)
     turn: float = 0.0  # int |w|
     unknown: float = 0.0  # time without a fresh command
+    dist: float = 0.0  # int |v|
 
 
 def combine(a: StepIntegral, b: StepIntegral) -> StepIntegral:
     """The integral over two consecutive steps (``a`` then ``b``)."""
     return StepIntegral(
         a.dt + b.dt, a.s + b.s, a.h + b.h, min(a.hmin, a.h + b.hmin), max(a.hmax, a.h + b.hmax),
-        a.turn + b.turn, a.unknown + b.unknown,
+        a.turn + b.turn, a.unknown + b.unknown, a.dist + b.dist,
     )  # fmt: skip
 
 
@@ -103,6 +105,7 @@ class CommandIntegrator:
             st.s += self._v * dt
             st.h += self._w * dt
             st.turn += abs(self._w) * dt
+            st.dist += abs(self._v) * dt
             self.heading += self._w * dt
             st.hmin, st.hmax = min(st.hmin, st.h), max(st.hmax, st.h)
         st.dt += dt
@@ -125,7 +128,7 @@ class CommandIntegrator:
     def peek(self) -> StepIntegral:
         """The integral since the last :meth:`take` (a copy)."""
         s = self._step
-        return StepIntegral(s.dt, s.s, s.h, s.hmin, s.hmax, s.turn, s.unknown)
+        return StepIntegral(s.dt, s.s, s.h, s.hmin, s.hmax, s.turn, s.unknown, s.dist)
 
     def take(self) -> StepIntegral:
         out, self._step = self._step, StepIntegral()
@@ -148,15 +151,14 @@ class StepBounds:
 def step_bounds(st: StepIntegral, cfg) -> StepBounds:
     """The error model of the module doc with the bounds of ``cfg``
     (a ``RangeBearingCPConfig``)."""
-    b = bounds_arrays(
-        np.array([st.dt]), np.array([st.s]), np.array([st.turn]), np.array([st.unknown]), cfg
-    )
+    b = bounds_arrays(*(np.array([v]) for v in (st.dt, st.s, st.turn, st.unknown, st.dist)), cfg)
     return StepBounds(float(b[0][0]), st.hmin, st.hmax, *(float(v[0]) for v in b[1:]))
 
 
-def bounds_arrays(dt, s, turn, unknown, cfg) -> tuple[np.ndarray, ...]:
+def bounds_arrays(dt, s, turn, unknown, dist, cfg) -> tuple[np.ndarray, ...]:
     """(dc, l_lo, l_hi, slack, cap) of steps given as arrays (module doc's model)."""
-    dc = cfg.heading_drift_radps * dt + cfg.heading_turn_rel * turn
+    dc = cfg.heading_drift_radps * dt + cfg.heading_drift_per_m * dist
+    dc = dc + cfg.heading_turn_rel * turn
     dc = dc + cfg.yaw_rate_cap_radps * unknown + GUARD
     p = cfg.path_abs_m + cfg.path_drift_mps * dt
     l_hi = (1.0 + cfg.speed_rel_hi) * s + p + cfg.speed_cap_mps * unknown
@@ -195,9 +197,9 @@ def predict_boxes(b: np.ndarray, theta0: np.ndarray, steps: list[StepIntegral], 
     """Boxes (N, 2, 3) of x, y, heading after ``steps`` from solved states ``b``
     (N, 2, 4: x, y, th, c; lo row, hi row) whose commanded headings are ``theta0``: the
     step model of the module doc forward (what a robot publishes between observations)."""
-    f = np.array([(s.dt, s.s, s.h, s.hmin, s.hmax, s.turn, s.unknown) for s in steps]).T
-    dt, s, h, hmin, hmax, turn, unknown = f.reshape(7, -1)
-    dc, l_lo, l_hi, slack, cap = bounds_arrays(dt, s, turn, unknown, cfg)
+    f = np.array([(s.dt, s.s, s.h, s.hmin, s.hmax, s.turn, s.unknown, s.dist) for s in steps]).T
+    dt, s, h, hmin, hmax, turn, unknown, dist = f.reshape(8, -1)
+    dc, l_lo, l_hi, slack, cap = bounds_arrays(dt, s, turn, unknown, dist, cfg)
     half_a = 0.5 * cfg.heading_transient_rad
     cl, ch = K.add(b[:, 0, 3], b[:, 1, 3], -dc, dc)
     dxl, dxh, dyl, dyh = displacements(theta0, hmin, hmax, cl, ch, half_a, l_lo, l_hi, slack, cap)
@@ -210,3 +212,20 @@ def predict_boxes(b: np.ndarray, theta0: np.ndarray, steps: list[StepIntegral], 
     dl, dh = K.add(b[:, 0, 2] + h, b[:, 1, 2] + h, -w, w)
     out[:, 0, 2], out[:, 1, 2] = np.maximum(tl, dl), np.minimum(th, dh)
     return out
+
+
+def predict_hulls(
+    pieces: list[np.ndarray], theta0: np.ndarray, steps: list[StepIntegral], cfg
+) -> np.ndarray:
+    """Boxes (N, 2, 3) after ``steps[i]`` from the solved state ``i`` given as pieces
+    ``pieces[i]`` (B_i, 2, 4) (a sub-paving: the state lies in one of them): each
+    piece predicted (:func:`predict_boxes`) and the hull of state i's pieces taken."""
+    sizes = np.array([p.shape[0] for p in pieces])
+    b = np.concatenate(pieces)
+    idx = np.repeat(np.arange(len(pieces)), sizes)
+    out = predict_boxes(b, np.asarray(theta0)[idx], [steps[i] for i in idx], cfg)
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    hull = np.empty((len(pieces), 2, 3))
+    hull[:, 0] = np.minimum.reduceat(out[:, 0], start, axis=0)
+    hull[:, 1] = np.maximum.reduceat(out[:, 1], start, axis=0)
+    return hull

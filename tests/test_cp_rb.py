@@ -46,7 +46,14 @@ class World:
         # piecewise constant in +-0.4 a
         sd = rng.choice([-1.0, 1.0], n // 200 + 2)[(t // 2.0).astype(int)]
         drift = np.cumsum(
-            0.85 * sd * (cfg.heading_drift_radps + cfg.heading_turn_rel * np.abs(we)) * dt
+            0.85
+            * sd
+            * (
+                cfg.heading_drift_radps
+                + cfg.heading_drift_per_m * np.abs(ve)
+                + cfg.heading_turn_rel * np.abs(we)
+            )
+            * dt
         )
         trans = (
             rng.uniform(-0.4, 0.4, n // 50 + 2)[(t // 0.5).astype(int)] * cfg.heading_transient_rad
@@ -76,7 +83,12 @@ class World:
             if d > max_range or d < 0.3:
                 continue
             u = rng.uniform(1.0 - 0.9 * c.range_rel_lo, 1.0 + 0.9 * c.range_rel_hi)
-            b = math.atan2(ly - y, lx - x) - th + common + rng.uniform(-0.9, 0.9) * c.bearing_rad
+            e = rng.uniform(-0.9, 0.9) * (c.bearing_rad + c.bearing_lateral_m / d)
+            b = math.atan2(ly - y, lx - x) - th + common + e
+            if c.range_model == "depth":  # the camera reports r cos(bearing measured)
+                if math.cos(b) < 0.35:  # outside its field of view
+                    continue
+                d *= math.cos(b)
             out.append((s, d / u, math.remainder(b, TAU)))
         return out
 
@@ -154,7 +166,7 @@ def test_gross_outlier_is_voted_out_and_named():
 
 
 def test_heading_lost_in_a_long_gap_recovers():
-    cfg = RangeBearingCPConfig()
+    cfg = replace(RangeBearingCPConfig(), heading_drift_radps=0.03)  # drifts more in time
     world = World(5, cfg, seconds=60.0)
     cp = RangeBearingCP(cfg, LANDMARKS, 1)
     before = {}

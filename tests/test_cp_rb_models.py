@@ -1,0 +1,154 @@
+"""The real-robot CP's measurement intervals and its sub-paving, against sampled truths:
+the camera's depth-range model (localization/cp_rb_sightings.py ``_rho``), the range-dependent
+bearing bound, the distance the integrator adds up, the heading slices the window solver
+cuts from the previous solve's pieces (localization/cp_rb_pieces.py), and
+the hull of the pieces' predicted boxes (velocity_odometry.predict_hulls).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from localization.cp_config import RangeBearingCPConfig
+from localization.cp_rb_pieces import heading_pieces
+from localization.cp_rb_sightings import MIN_COS, Sightings
+from localization.velocity_odometry import (
+    CommandIntegrator,
+    StepIntegral,
+    predict_boxes,
+    predict_hulls,
+)
+
+TAU = 2 * math.pi
+LM = {6: (2.0, 1.0, 0.0, 0.0)}
+
+
+@pytest.mark.parametrize("model", ["depth", "range"])
+def test_range_interval_holds_every_true_range_inside_the_bounds(model):
+    cfg = replace(RangeBearingCPConfig(), range_model=model)
+    cp = Sightings(cfg, LM)
+    rng = np.random.default_rng(11)
+    for robot in (False, True):
+        lo_rel, hi_rel = (
+            (cfg.robot_range_rel_lo, cfg.robot_range_rel_hi)
+            if robot
+            else (cfg.range_rel_lo, cfg.range_rel_hi)
+        )
+        for _ in range(3000):
+            r = rng.uniform(0.05, 8.0)  # true range
+            b = rng.uniform(-1.4, 1.4)  # bearing measured
+            x = r * math.cos(b) if model == "depth" else r  # what the bounds hold
+            # a measurement rho whose error is anywhere inside the bounds (edges too)
+            f = rng.choice([0.0, 1.0, rng.uniform()])
+            lo_rho = (x - cfg.range_abs_m) / (1.0 + hi_rel)  # x = (1 + hi) rho + abs
+            hi_rho = (x + cfg.range_abs_m) / (1.0 - lo_rel)  # x = (1 - lo) rho - abs
+            rho = max(0.0, lo_rho + f * (hi_rho - lo_rho))
+            lo, hi = cp._rho(rho, b, robot)
+            assert lo <= r <= hi, (model, robot, r, b, rho, lo, hi)
+            assert lo >= 0.0
+            if model == "depth" and math.cos(b) < MIN_COS:
+                assert hi == math.inf
+
+
+def test_bearing_bound_is_wider_at_short_range():
+    cfg = RangeBearingCPConfig()
+    cp = Sightings(cfg, LM)
+    near, far = cp._beta(0.2, 1.0), cp._beta(0.2, 5.0)
+    assert near[0] < far[0] < 0.2 < far[1] < near[1]
+    assert math.isclose(far[1] - 0.2, cfg.bearing_rad + cfg.bearing_lateral_m / 5.0)
+    assert np.isfinite(cp._beta(0.2, 0.0)).all()  # a zero range: the floor of MIN_RANGE_M
+
+
+def test_integrator_adds_up_the_distance_driven_backwards_too():
+    it = CommandIntegrator(0.0, 5.0)
+    it.command(0.0, 0.1, 0.0)
+    it.command(1.0, -0.05, 0.0)
+    it.advance(0.0)
+    it.advance(3.0)
+    st = it.take()
+    assert math.isclose(st.s, 0.1 - 0.1, abs_tol=1e-12)
+    assert math.isclose(st.dist, 0.1 + 0.1, abs_tol=1e-12)
+
+
+def _true_window(rng, n, half_a, beta_c):
+    theta = np.cumsum(rng.normal(0.0, 0.3, n))
+    dc = rng.uniform(0.001, 0.08, n - 1)
+    c = np.cumsum(np.concatenate([[rng.uniform(-3.0, 3.0)], rng.uniform(-1, 1, n - 1) * dc]))
+    th = theta + c + rng.uniform(-half_a, half_a, n)
+    ph = th[-1] + rng.uniform(-beta_c, beta_c)
+    return theta, dc, {"x": rng.normal(0, 3, n), "y": rng.normal(0, 3, n), "th": th, "c": c}, ph
+
+
+def test_heading_slices_cover_every_point_of_the_parents():
+    """heading_pieces cuts the parents' newest camera headings into slices (or sectors, when
+    the heading is unknown): a point of any parent lies in some slice, all states."""
+    rng = np.random.default_rng(5)
+    half_a, beta_c = 0.06, 0.06
+    seen_lost = seen_sliced = 0
+    for _ in range(400):
+        n = int(rng.integers(2, 7))
+        npar = int(rng.integers(1, 6))
+        theta, dc, true, ph = _true_window(rng, n, half_a, beta_c)
+        i = int(rng.integers(npar))
+        wide = rng.uniform() < 0.3  # some parents whose heading is (almost) unknown
+        hard = {}
+        for name, v in true.items():
+            scale = 6.0 if wide and name in ("th", "c") else 0.4
+            lo = v[None] - rng.uniform(0, scale, (npar, n))
+            hi = v[None] + rng.uniform(0, scale, (npar, n))
+            shift = rng.normal(0.0, 0.5, (npar, 1))
+            shift[i] = 0.0
+            box = np.stack([lo + shift, hi + shift])
+            unknown = rng.uniform(size=(npar, n)) < 0.2
+            box[0][unknown], box[1][unknown] = -np.inf, np.inf
+            hard[name] = box
+        hx, hy, hc, hth, hph, lost = heading_pieces(
+            theta, dc, hard["x"], hard["y"], hard["th"], hard["c"],
+            half_a, beta_c, 0.1, int(rng.integers(1, 8)), 24,
+        )  # fmt: skip
+        seen_lost += lost
+        seen_sliced += not lost
+        found = False
+        for j in range(hx.shape[1]):
+            k = math.floor((hph[1, j, -1] - ph) / TAU) if lost else 0  # ph + 2 pi k in it
+            s = TAU * k
+            ok = hph[0, j, -1] <= ph + s <= hph[1, j, -1]
+            for box, v in (
+                (hx, true["x"]),
+                (hy, true["y"]),
+                (hth, true["th"] + s),
+                (hc, true["c"] + s),
+            ):
+                ok &= bool(np.all((box[0, j] <= v) & (v <= box[1, j])))
+            found |= ok
+        assert found, (lost, hph[:, :, -1], ph)
+    assert seen_lost > 10 and seen_sliced > 100
+
+
+def test_predicted_hull_of_pieces_holds_each_piece_prediction():
+    cfg = RangeBearingCPConfig()
+    rng = np.random.default_rng(2)
+    pieces, theta0, steps = [], [], []
+    for _ in range(30):
+        b = int(rng.integers(1, 5))
+        lo = rng.normal(0, 1, (b, 4))
+        pieces.append(np.stack([lo, lo + rng.uniform(0.01, 0.5, (b, 4))], axis=1))
+        theta0.append(rng.uniform(-3, 3))
+        st = StepIntegral(dt=rng.uniform(0, 2))
+        st.s = st.dist = 0.08 * st.dt
+        st.h = st.hmax = st.turn = 0.3 * st.dt
+        steps.append(st)
+    hull = predict_hulls(pieces, np.array(theta0), steps, cfg)
+    for i, b in enumerate(pieces):
+        each = predict_boxes(b, np.full(b.shape[0], theta0[i]), [steps[i]] * b.shape[0], cfg)
+        assert np.allclose(hull[i, 0], each[:, 0].min(axis=0))
+        assert np.allclose(hull[i, 1], each[:, 1].max(axis=0))
+
+
+def test_config_rejects_an_unknown_range_model():
+    with pytest.raises(ValueError, match="range_model"):
+        replace(RangeBearingCPConfig(), range_model="sonar")
