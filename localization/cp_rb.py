@@ -117,7 +117,7 @@ class RangeBearingCP:
     ) -> None:
         self.cfg = config or RangeBearingCPConfig()
         self.robot = robot
-        self.landmarks = dict(landmarks or {})
+        self._landmarks = dict(landmarks or {})
         self.odo = CommandIntegrator(self.cfg.command_lag_s, self.cfg.max_hold_s)
         self._states: list[_State] = []
         #: (P, 2, 4): x, y, th, c of the window's first state, per piece (a sub-paving)
@@ -130,11 +130,23 @@ class RangeBearingCP:
         self.solves = 0
         #: when the guarantee last had to be weakened (relaxed, reinit, lost)
         self.last_alert = -_INF
-        self.sightings = Sightings(self.cfg, self.landmarks)
+        self.sightings = Sightings(self.cfg, self._landmarks)
         self.skipped = self.sightings.skipped  # sightings refused, by reason
         self._heard: list[tuple[int, float, float, PeerBox]] = []  # seen by peers, not yet used
 
     # -- inputs --------------------------------------------------------------------
+
+    @property
+    def landmarks(self) -> dict[int, tuple[float, float, float, float]]:
+        """The known landmarks: subject -> (x, y, sigma x, sigma y)."""
+        return self._landmarks
+
+    @landmarks.setter
+    def landmarks(self, marks: dict[int, tuple[float, float, float, float]]) -> None:
+        """A new map (e.g. a ``landmark_map`` message): the sightings use it from now."""
+        self._landmarks = dict(marks)
+        self.sightings.landmarks = self._landmarks
+
     def command(self, t: float, v: float, w: float) -> None:
         self.odo.command(t, v, w)
 

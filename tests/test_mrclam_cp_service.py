@@ -52,9 +52,18 @@ def _seen(robot: str, stamp: int, target: str) -> RangeBearing:
         subject = int(target[1:])
         tx, ty = MARKS[subject]
         landmark = True
-    r = math.hypot(tx - x, ty - y)
     b = math.remainder(math.atan2(ty - y, tx - x) - th, 2 * math.pi)
-    return RangeBearing(stamp, robot, target, landmark, r, b, subject)
+    # The camera reports depth r cos(b) (RangeBearingCPConfig.range_model); robots' tubes
+    # read long (true depth within [0.93, 1.04] of the reading), landmarks' exactly.
+    depth = math.hypot(tx - x, ty - y) * math.cos(b)
+    return RangeBearing(
+        stamp, robot, target, landmark, depth if landmark else depth / 0.95, b, subject
+    )
+
+
+def _in_view(robot: str, target: str) -> bool:
+    """Whether ``target`` is in front of ``robot``'s camera (|bearing| < 80 deg)."""
+    return abs(_seen(robot, 0, target).bearing_rad) < math.radians(80)
 
 
 def _feed(svc: MrclamCpService, msgs: list) -> list:
@@ -70,7 +79,11 @@ def _rest(robot: str, t0: int, t1: int) -> list:
     for st in range(t0, t1, S // 20):
         msgs.append(("velocity", VelocityOdometry(st, 0.0, 0.0, True)))
         if (st - t0) % (S // 4) == 0:
-            msgs += [("landmark_range_bearing", _seen(robot, st, f"l{i}")) for i in MARKS]
+            msgs += [
+                ("landmark_range_bearing", _seen(robot, st, f"l{i}"))
+                for i in MARKS
+                if _in_view(robot, f"l{i}")
+            ]
     return msgs
 
 
