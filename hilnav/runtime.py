@@ -109,6 +109,9 @@ class RobotRuntime:
         self.zenoh = zenoh or cfg.zenoh.settings()
         self.prog = prog
         self.wake = wake  # set on every put (a consumer serving several runtimes waits on it)
+        # topics whose put() does not set ``wake``: their consumer takes them when it comes
+        # round anyway (the daemon's loop: at its next device read, at most tick_s later)
+        self.lazy: frozenset[str] = frozenset()
         self.stats = RuntimeStats()
         self.errors: list[str] = []
         self._fault_kinds: set[tuple[str, str]] = set()
@@ -193,7 +196,7 @@ class RobotRuntime:
             self.stats.dropped += 1
         else:
             self._q.put(Item(topic, msg, recv_ns or time.time_ns(), peer))
-        if self.wake is not None:
+        if self.wake is not None and topic not in self.lazy:
             self.wake.set()
 
     def put_read(self, pending: list[tuple[str, Any]]) -> None:
@@ -244,16 +247,48 @@ class RobotRuntime:
         except queue.Empty:
             return None
 
-    def drain(self, publish: bool = True) -> int:
-        """Handle everything queued now; how many items."""
+    def drain(self, publish: bool = True, limit: int | None = None) -> int:
+        """Handle everything queued now (at most ``limit`` entries); how many items."""
         n = 0
-        while True:
+        left = -1 if limit is None else limit
+        get = self._q.get_nowait
+        while left != 0:
             try:
-                entry = self._q.get_nowait()
+                entry = get()
             except queue.Empty:
                 return n
             self.handle(entry, publish)
             n += len(entry) if type(entry) is list else 1
+            left -= 1
+        return n
+
+    def queued(self) -> int:
+        """Entries waiting in the queue."""
+        return self._q.qsize()
+
+    def take_queued(self) -> list[Item | list[Item]]:
+        """The entries queued now, taken out of the queue in order (for :meth:`handle`)."""
+        out: list[Item | list[Item]] = []
+        get = self._q.get_nowait
+        for _ in range(self._q.qsize()):
+            try:
+                out.append(get())
+            except queue.Empty:
+                break
+        return out
+
+    def handle_read(
+        self, pending: list[tuple[str, Any]], recv_ns: int | None = None, publish: bool = True
+    ) -> None:
+        """The ``(topic, msg)`` items of one device read, received at ``recv_ns`` (default
+        now), handled by the consumer's own thread (the daemon's loop reads a device
+        itself): as :meth:`put_read` then :meth:`handle`, without the queue."""
+        now = time.time_ns() if recv_ns is None else recv_ns
+        for topic, msg in pending:
+            try:
+                self._handle_own(topic, msg, now, publish)
+            except Exception as exc:
+                self.fault("services", exc)
 
     def guard(self, where: str, fn: Any, *args: Any) -> None:
         """``fn(*args)``, an exception counted under ``where``."""
@@ -282,18 +317,23 @@ class RobotRuntime:
             self.guard("services", self.pipeline.drop_peer, robot)
 
     def _handle(self, item: Item, publish: bool) -> None:
-        topic, msg = item.topic, item.msg
-        self.stats.processed += 1
-        self.stats.by_topic[topic] = self.stats.by_topic.get(topic, 0) + 1
         if item.peer:
+            self.stats.processed += 1
+            self.stats.by_topic[item.topic] = self.stats.by_topic.get(item.topic, 0) + 1
             self._handle_peer(item)
             return
+        self._handle_own(item.topic, item.msg, item.recv_ns, publish)
+
+    def _handle_own(self, topic: str, msg: Any, recv_ns: int, publish: bool) -> None:
+        stats = self.stats
+        stats.processed += 1
+        stats.by_topic[topic] = stats.by_topic.get(topic, 0) + 1
         if topic == "info":
             self.pipeline.latest["info"] = msg
-        self.emit(topic, msg, item.recv_ns, publish)
+        self.emit(topic, msg, recv_ns, publish)
         self._publishing = publish
         try:
-            self.pipeline.feed(topic, msg, item.recv_ns)  # outputs: self._from_service
+            self.pipeline.feed(topic, msg, recv_ns)  # outputs: self._from_service
         finally:
             self._publishing = True
 
