@@ -333,13 +333,6 @@ class AlignedInput:
     def gyro_stale(self) -> bool:
         return self._align.gyro_stale
 
-    @property
-    def odometry_held(self) -> bool:
-        """An odometry message waits for its gyro sample (arrival order): the next gyro
-        sample may release it, and its estimate with it."""
-        arrival = self._align.arrival
-        return arrival is not None and arrival.held is not None
-
     def feed(self, msg: object) -> Any:
         """RobotOdometry or GyroSample -> the new estimate if a step ran (a gyro sample: only
         if it released held odometry), else None; other messages go to ``_feed_other``."""

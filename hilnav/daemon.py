@@ -42,7 +42,9 @@ from msgs import DaemonStatus, DeviceDiagnostics, RawBytes, VelocityCommand
 
 DaemonError = StartError  # the daemon cannot start (fakes, log directory, Zenoh): says why
 DaemonStats = RuntimeStats
-PROMPT_TOPICS = frozenset({"odometry", "info"})  # device reads the loop handles at once
+# device messages the loop logs and publishes at once (the others in batches, at most
+# every 0.1 s): odometry goes out before the pose made of it (the log's views need it)
+PROMPT_TOPICS = frozenset({"odometry", "info"})
 # queued by Zenoh's callbacks and the watchdog, taken at the loop's next turn (no wake-up
 # of their own): logged only (truth, cmd_vel: the wheels got it in the callback), or
 # used by cooperative localization at its next step (peers' boxes, liveliness: topic "")
@@ -79,7 +81,7 @@ class Daemon:
         self.loop = DeviceLoop(
             self.runtime,
             read_device=self._read_device,
-            prompt=self._prompt,
+            prompt_topics=PROMPT_TOPICS,
             start_thread=lambda name, drv: self._thread(self._reader, f"dev-{name}", name, drv),
             heartbeat=self.motion.heartbeat,
             on_tick=self._tick,
@@ -254,15 +256,6 @@ class Daemon:
         items = pending[:]
         pending.clear()
         return items
-
-    def _prompt(self, items: list[tuple[str, Any]]) -> bool:
-        """Handle this read (and those before it) at once: it holds odometry (the pose is
-        made of it), or a fusion service waits for the gyro sample it may hold; other
-        reads wait up to the loop's ``batch_s`` and are handled together."""
-        for topic, _ in items:
-            if topic in PROMPT_TOPICS:
-                return True
-        return self.runtime.pipeline.waiting
 
     def _on_cmd_vel(self, robot: str, cmd: VelocityCommand) -> None:
         if self._stop.is_set():

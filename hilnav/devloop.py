@@ -94,7 +94,7 @@ class DeviceLoop:
         runtime: Any,
         *,
         read_device: Callable[[str, Any, float], PendingItems],
-        prompt: Callable[[PendingItems], bool],
+        prompt_topics: frozenset[str],
         start_thread: Callable[[str, Any], None],
         heartbeat: Callable[[], None],
         on_tick: Callable[[float], None],
@@ -106,7 +106,7 @@ class DeviceLoop:
     ) -> None:
         self.runtime = runtime
         self.read_device = read_device
-        self.prompt = prompt
+        self.prompt_topics = prompt_topics
         self.start_thread = start_thread
         self.heartbeat = heartbeat
         self.on_tick = on_tick
@@ -123,12 +123,12 @@ class DeviceLoop:
         self._adopt_lock = threading.Lock()
         # name -> [driver, its descriptor, monotonic time of its last read]
         self._looped: dict[str, list[Any]] = {}
-        # what is not handled yet, in arrival order: (receive time ns, items) of a read,
-        # or a queue entry; and the monotonic time of the first
-        self._backlog: list[Any] = []
+        # the read items given to the services but not logged and published yet, in
+        # order: (topic, msg, receive time ns); the monotonic time of the first
+        self._backlog: list[tuple[str, Any, int]] = []
         self._backlog_since = 0.0
         self.reads = 0  # device reads done by the loop
-        self.batches = 0  # backlogs handled
+        self.batches = 0  # backlogs logged and published
         self.handovers = 0  # devices the loop gave to a thread (link down)
 
     # -- any thread ---------------------------------------------------------------------
@@ -193,27 +193,20 @@ class DeviceLoop:
             self.flush()
 
     def _absorb(self) -> None:
-        """The queue's entries (they came before what the loop reads next) to the backlog."""
+        """Handle what the queue holds (it came before what the loop reads next)."""
         rt = self.runtime
         if rt.queued():
-            if not self._backlog:
-                self._backlog_since = time.monotonic()
-            self._backlog += rt.take_queued()
+            for entry in rt.take_queued():
+                rt.handle(entry)
 
     def flush(self) -> None:
-        """Handle the backlog and the queue, in arrival order."""
+        """Handle the queue; log and publish the backlog."""
         self._absorb()
         backlog = self._backlog
-        if not backlog:
-            return
-        self._backlog = []
-        self.batches += 1
-        rt = self.runtime
-        for entry in backlog:
-            if type(entry) is tuple:
-                rt.handle_read(entry[1], entry[0])
-            else:
-                rt.handle(entry)
+        if backlog:
+            self._backlog = []
+            self.batches += 1
+            self.runtime.emit_later(backlog)
 
     def _read(self, name: str, drv: Any) -> None:
         entry = self._looped[name]
@@ -223,11 +216,11 @@ class DeviceLoop:
             items = self.read_device(name, drv, 0.0)
             if items:
                 self._absorb()
-                if not self._backlog:
+                backlog = self._backlog
+                if not backlog:
                     self._backlog_since = entry[2]
-                self._backlog.append((time.time_ns(), items))
-                if self.prompt(items):
-                    self.flush()
+                self.runtime.handle_read(items, time.time_ns(), later=backlog,
+                                         prompt=self.prompt_topics)  # fmt: skip
             if not getattr(drv, "buffered", _false)():
                 break
         fd = drv.fileno()

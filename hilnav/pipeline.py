@@ -116,14 +116,6 @@ class Pipeline:
         names = ("heading", "pose", "localization", "mapping")
         return [n for n in names if getattr(self, n) is not None]
 
-    @property
-    def waiting(self) -> bool:
-        """A fusion service holds an odometry message for its gyro sample: the next gyro
-        sample may make an estimate (what a caller batching its inputs must not delay)."""
-        return (self.heading is not None and self.heading.waiting) or (
-            self.pose is not None and self.pose.waiting
-        )
-
     def feed(self, topic: str, msg: Any, tag: Any = None) -> Outputs:
         """Outputs caused by one input message (none for topics the services ignore);
         with a mapping worker, the mapping's outputs come later, through its sink."""

@@ -278,15 +278,35 @@ class RobotRuntime:
         return out
 
     def handle_read(
-        self, pending: list[tuple[str, Any]], recv_ns: int | None = None, publish: bool = True
+        self,
+        pending: list[tuple[str, Any]],
+        recv_ns: int | None = None,
+        publish: bool = True,
+        later: list[tuple[str, Any, int]] | None = None,
+        prompt: frozenset[str] = frozenset(),
     ) -> None:
         """The ``(topic, msg)`` items of one device read, received at ``recv_ns`` (default
         now), handled by the consumer's own thread (the daemon's loop reads a device
-        itself): as :meth:`put_read` then :meth:`handle`, without the queue."""
+        itself): as :meth:`put_read` then :meth:`handle`, without the queue. With
+        ``later``, the items go to the services now (their outputs out at once) but are
+        logged and published by :meth:`emit_later`, in a batch; those of a ``prompt``
+        topic are logged and published now (odometry: before the pose made of it)."""
         now = time.time_ns() if recv_ns is None else recv_ns
         for topic, msg in pending:
             try:
-                self._handle_own(topic, msg, now, publish)
+                if later is None or topic in prompt:
+                    self._handle_own(topic, msg, now, publish)
+                else:
+                    later.append((topic, msg, now))
+                    self._handle_own(topic, msg, now, publish, False)
+            except Exception as exc:
+                self.fault("services", exc)
+
+    def emit_later(self, later: list[tuple[str, Any, int]], publish: bool = True) -> None:
+        """Log and publish the items :meth:`handle_read` left for later, in order."""
+        for topic, msg, recv_ns in later:
+            try:
+                self.emit(topic, msg, recv_ns, publish)
             except Exception as exc:
                 self.fault("services", exc)
 
@@ -324,13 +344,16 @@ class RobotRuntime:
             return
         self._handle_own(item.topic, item.msg, item.recv_ns, publish)
 
-    def _handle_own(self, topic: str, msg: Any, recv_ns: int, publish: bool) -> None:
+    def _handle_own(
+        self, topic: str, msg: Any, recv_ns: int, publish: bool, emit: bool = True
+    ) -> None:
         stats = self.stats
         stats.processed += 1
         stats.by_topic[topic] = stats.by_topic.get(topic, 0) + 1
         if topic == "info":
             self.pipeline.latest["info"] = msg
-        self.emit(topic, msg, recv_ns, publish)
+        if emit:
+            self.emit(topic, msg, recv_ns, publish)
         self._publishing = publish
         try:
             self.pipeline.feed(topic, msg, recv_ns)  # outputs: self._from_service

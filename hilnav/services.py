@@ -96,11 +96,6 @@ class HeadingAdapter:
             return [] if est is None else [("heading", est)]
         return []
 
-    @property
-    def waiting(self) -> bool:
-        """An odometry message waits for its gyro sample (its estimate comes with it)."""
-        return self.filter.odometry_held
-
 
 class PoseAdapter:
     """fusion.pose_ekf.PoseEkf fed odometry, gyro and (optionally) GPS -> ``pose``."""
@@ -122,11 +117,6 @@ class PoseAdapter:
         initial = None if sv.init_from_gps else initial_pose(cfg)
         arrival = ArrivalOrder(cfg.devices.gyro.rate_hz)
         self.ekf = PoseEkf(params, initial=initial, arrival=arrival)
-
-    @property
-    def waiting(self) -> bool:
-        """An odometry message waits for its gyro sample (its pose comes with it)."""
-        return self.ekf.odometry_held
 
     def feed(self, topic: str, msg: Any) -> Outputs:
         if isinstance(msg, GpsFix):
