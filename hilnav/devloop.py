@@ -1,16 +1,22 @@
 """The daemon's one loop: every device port and the runtime's queue on one selector.
 
-One thread waits on a selector (epoll) over the descriptors of the devices whose
-link is up and has one (``driver.fileno()``: serial ports and ptys, the slcan adapter's
-port) and over a wake-up pipe of the runtime's queue. A readable device is read at once
+One thread waits on an epoll over the descriptors of the devices whose link is up and
+has one (``driver.fileno()``: serial ports and ptys, the slcan adapter's port) and over
+a wake-up pipe of the runtime's queue. A readable device is read at once
 (``driver.read(0)``: what is there, decoded, stamped with the read's time) and its raw
-bytes and messages go through the runtime as one read
-(:meth:`hilnav.runtime.RobotRuntime.handle_read`: services, bus, log), in the same thread
-and the same wake-up: one thread woken per device read instead of a reader and the
-service loop, no hand-over through the queue, no reader threads contending for the GIL.
+bytes and messages go to the services in the same thread and the same wake-up
+(:meth:`hilnav.runtime.RobotRuntime.handle_read`): one thread woken per device read
+instead of a reader and a service loop, no hand-over through a queue, no reader threads
+contending for the GIL. Service outputs are published and logged the moment they are
+made; the device messages themselves are logged and published in batches, at most
+``batch_s`` after their read (or at the loop's next tick), except those of
+``prompt_topics`` (odometry, which goes out before the pose made of it): handling a lone
+message costs several times as much as handling it among others on a loaded machine.
+
 What other threads produce (Zenoh's callbacks: commands, peers' boxes, the truth; the
-watchdog's stops) is queued and wakes the loop through the pipe, so everything is still
-handled by one consumer in arrival order.
+watchdog's stops) is queued. The loop takes the queue before each read and at each tick,
+so everything is handled by one consumer in arrival order; a queue entry that must not
+wait (a device thread's read, below) also wakes the loop through the pipe.
 
 A device without a descriptor to wait on (a pyserial URL such as ``socket://``, a file of
 recorded bytes, a python-can interface other than slcan) and a device whose link is down
@@ -18,14 +24,14 @@ are read by a thread of their own, as before: a blocking ``read(timeout)`` in a 
 driver reconnecting itself (an ARCOS handshake takes up to seconds, which the loop must
 not wait for), the reads put on the queue. The moment such a device's link is up with a
 descriptor the thread hands it to the loop and ends; the moment the loop sees a device's
-link go (after a read), it takes the descriptor off the selector and starts a thread
-for it again. So a device is read by exactly one thread at any time.
+link go (after a read), it takes the descriptor off the epoll and starts a thread for it
+again. So a device is read by exactly one thread at any time.
 
 Timers, all on the loop's own clock (no thread of their own): each looped device is
 read once every ``keepalive_s`` even when silent (its keep-alive, e.g. the ARCOS PULSE,
 and its silence check, which drops a dead link); the loop's heartbeat to the motion
-watchdog at least every ``beat_s`` (the loop wakes for it when nothing else comes); and the callers' periodic work
-(``on_tick``: peer expiry, diagnostics) at most every ``tick_s``.
+watchdog at least every ``beat_s`` (the loop wakes for it when nothing else comes); and
+the callers' periodic work (``on_tick``: peer expiry, diagnostics) every ``tick_s``.
 """
 
 from __future__ import annotations
@@ -84,8 +90,8 @@ class DeviceLoop:
 
     ``runtime`` is the :class:`hilnav.runtime.RobotRuntime` whose queue and consumer the
     loop is. ``read_device(name, driver, timeout_s)`` is the daemon's read of one device
-    (``driver.read`` and its raw bytes: the items of one read); ``prompt(items)`` says
-    whether a read must be handled at once; ``start_thread(name, driver)`` reads a
+    (``driver.read`` and its raw bytes: the items of one read); ``prompt_topics`` are
+    logged and published at once; ``start_thread(name, driver)`` reads a
     device by a thread until :meth:`adopt` takes it back; ``heartbeat()`` and
     ``on_tick(now)`` are called as the module docstring says."""
 

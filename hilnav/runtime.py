@@ -1,16 +1,18 @@
 """One robot's runtime: its services, its peers, the bus and the log, fed by one queue.
 
 The daemon (``hilnav run``) and every robot of ``hilnav fleet`` are a
-:class:`RobotRuntime`; only what feeds them differs (the daemon: one reader thread per
-device and its service loop thread; a fleet robot: the scenario's simulated devices, stepped
-by :mod:`hilnav.fleet.host`). The runtime owns:
+:class:`RobotRuntime`; only what feeds them differs (the daemon: its device loop,
+:mod:`hilnav.devloop`, which reads the devices and handles their reads itself,
+:meth:`handle_read`; a fleet robot: the scenario's simulated devices, stepped by
+:mod:`hilnav.fleet.host`). The runtime owns:
 
 - the :class:`hilnav.pipeline.Pipeline` of the robot's config (its mapping worker, if
   any, hands its outputs back here);
 - ONE queue (a ``queue.SimpleQueue``: put and get in C; its bound checked on its size):
   :meth:`put` one message, :meth:`put_read` the items of one device read (its raw bytes,
   then its messages) as ONE entry, from any thread (device readers, Zenoh's callbacks),
-  taken in arrival order by one consumer (:meth:`next` + :meth:`handle`, or :meth:`drain`);
+  taken in arrival order by one consumer (:meth:`next` or :meth:`take_queued`, then
+  :meth:`handle`; or :meth:`drain`); ``wake.set()`` on every put but of the ``lazy`` topics;
 - the :class:`hilnav.bus.Bus` (``[zenoh]``), the fleet's pose boxes and liveliness
   tokens (:meth:`declare_peers`) and the queryables ``pose``, ``map``, ``info``;
 - the :class:`hilnav.peers.PeerTable` (a peer is dropped when its token goes or its
@@ -109,8 +111,7 @@ class RobotRuntime:
         self.zenoh = zenoh or cfg.zenoh.settings()
         self.prog = prog
         self.wake = wake  # set on every put (a consumer serving several runtimes waits on it)
-        # topics whose put() does not set ``wake``: their consumer takes them when it comes
-        # round anyway (the daemon's loop: at its next device read, at most tick_s later)
+        # topics whose put() does not set ``wake`` (the consumer takes them at its next turn)
         self.lazy: frozenset[str] = frozenset()
         self.stats = RuntimeStats()
         self.errors: list[str] = []
@@ -247,19 +248,12 @@ class RobotRuntime:
         except queue.Empty:
             return None
 
-    def drain(self, publish: bool = True, limit: int | None = None) -> int:
-        """Handle everything queued now (at most ``limit`` entries); how many items."""
+    def drain(self, publish: bool = True) -> int:
+        """Handle everything queued now; how many items."""
         n = 0
-        left = -1 if limit is None else limit
-        get = self._q.get_nowait
-        while left != 0:
-            try:
-                entry = get()
-            except queue.Empty:
-                return n
+        for entry in self.take_queued():
             self.handle(entry, publish)
             n += len(entry) if type(entry) is list else 1
-            left -= 1
         return n
 
     def queued(self) -> int:
@@ -285,12 +279,10 @@ class RobotRuntime:
         later: list[tuple[str, Any, int]] | None = None,
         prompt: frozenset[str] = frozenset(),
     ) -> None:
-        """The ``(topic, msg)`` items of one device read, received at ``recv_ns`` (default
-        now), handled by the consumer's own thread (the daemon's loop reads a device
-        itself): as :meth:`put_read` then :meth:`handle`, without the queue. With
-        ``later``, the items go to the services now (their outputs out at once) but are
-        logged and published by :meth:`emit_later`, in a batch; those of a ``prompt``
-        topic are logged and published now (odometry: before the pose made of it)."""
+        """One device read's ``(topic, msg)`` items, received at ``recv_ns`` (default now),
+        handled by the consumer's thread (the daemon's loop reads devices itself). With
+        ``later``, the items go to the services now but are logged and published by
+        :meth:`emit_later`, except those of a ``prompt`` topic (odometry, before its pose)."""
         now = time.time_ns() if recv_ns is None else recv_ns
         for topic, msg in pending:
             try:
@@ -305,10 +297,7 @@ class RobotRuntime:
     def emit_later(self, later: list[tuple[str, Any, int]], publish: bool = True) -> None:
         """Log and publish the items :meth:`handle_read` left for later, in order."""
         for topic, msg, recv_ns in later:
-            try:
-                self.emit(topic, msg, recv_ns, publish)
-            except Exception as exc:
-                self.fault("services", exc)
+            self.guard("services", self.emit, topic, msg, recv_ns, publish)
 
     def guard(self, where: str, fn: Any, *args: Any) -> None:
         """``fn(*args)``, an exception counted under ``where``."""
