@@ -13,9 +13,10 @@ Prints, the LAST line a JSON object:
 - ``pose_latency_ms_p50`` / ``_p99``: from the time the Pioneer's bytes were read (the
   odometry stamp, which the pose inherits) to the pose arriving in the second session;
   split, from the log's receive times, into ``pose_hold_ms_*`` (the odometry received to
-  the input that released its pose received: the fusion filters hold an odometry message
-  until the next gyro sample, fusion.arrival rule 2) and ``pose_after_release_ms_*`` (that
-  input received to the pose arriving: the daemon's own work and Zenoh);
+  the input that released its pose received: the fusion filters take an odometry message
+  at once when the gyro has caught up with it, else wait for the gyro sample that covers
+  it, fusion.arrival rule 2) and ``pose_after_release_ms_*`` (that input received to the
+  pose arriving: the daemon's own work and Zenoh);
 - ``mcap_messages_per_s``: messages in the log (all topics, raw bytes and Foxglove views
   included) per second of run; ``dropped``: messages the daemon's queues dropped.
 

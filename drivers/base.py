@@ -5,8 +5,10 @@ any garbage) and returns the messages completed by them; it never raises on inpu
 keeps :class:`CodecStats`. A *driver* owns a transport, does the device's handshake and
 keep-alive, and offers ``read(timeout_s)``: block at most ``timeout_s``, return the
 decoded messages (possibly none), reconnect by itself when the link drops. The daemon
-runs one thread per driver calling ``read`` in a loop; ``on_raw`` sees every chunk of
-raw bytes (for the MCAP log). Stamps come from an injected ``clock`` (ns), so replay
+waits on the drivers' ``fileno()`` (where a driver has one: a port on a device path) with
+one selector and calls ``read(0)`` when it is readable; a driver without one is read by a
+thread calling ``read(timeout)`` in a loop. ``on_raw`` sees every chunk of raw bytes (for
+the MCAP log). Stamps come from an injected ``clock`` (ns), so replay
 from a file can use recorded time.
 """
 
@@ -72,6 +74,9 @@ class Driver(Protocol):
     def close(self) -> None: ...
 
     def diagnostics(self, stamp_ns: int) -> DeviceDiagnostics: ...
+
+    # optional: ``fileno() -> int | None``, the descriptor to wait on while the link is up
+    # (then ``read(0)`` never blocks); ``buffered() -> bool``, bytes read and not decoded
 
 
 class LinkDiagnostics:

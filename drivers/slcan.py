@@ -33,6 +33,17 @@ class BlockSlcanBus(slcanBus):
         if type(port).__module__ == "serial.serialposix":
             self._fd = port.fileno()
 
+    @property
+    def fd(self) -> int | None:
+        """The adapter's port descriptor (None: a port read through python-can's reader)."""
+        return self._fd
+
+    def has_line(self) -> bool:
+        """A complete line (ok, frame or error) is buffered: ``recv`` returns without
+        reading the port."""
+        buf = self._buffer
+        return b"\r" in buf or b"\a" in buf
+
     def _line(self) -> str | None:
         """The first complete line of the buffer (with its terminator), taken out of it."""
         buf = self._buffer

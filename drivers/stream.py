@@ -82,6 +82,12 @@ class StreamDriver(LinkDiagnostics, ReconnectingLink):
                 self.last_error = str(exc)
                 return False
 
+    def fileno(self) -> int | None:
+        """The port's descriptor while the link is up and has one (a device path), for a
+        selector that calls ``read(0)`` when it is readable; else None."""
+        t = self._t
+        return t.fileno() if self.connected and t is not None else None
+
     @property
     def is_file(self) -> bool:
         return isinstance(self._t, FileTransport)

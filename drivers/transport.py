@@ -8,7 +8,8 @@
 - a path to a regular file of recorded bytes: read as fast as possible, then EOF.
 
 Every transport has ``read(max_bytes, timeout_s) -> bytes`` (empty on timeout),
-``write(data)``, ``close()`` and ``eof`` (a file ran out). Opening failures raise
+``write(data)``, ``close()``, ``eof`` (a file ran out) and ``fileno()`` (the descriptor
+to wait on with a selector: a device path's; None for URLs and files). Opening failures raise
 :class:`drivers.base.DeviceError` naming the port and what to do; a link that breaks
 while in use raises :class:`LinkLost` so the driver can reconnect.
 """
@@ -37,6 +38,11 @@ class Transport:
 
     def read(self, max_bytes: int, timeout_s: float) -> bytes:
         raise NotImplementedError
+
+    def fileno(self) -> int | None:
+        """The descriptor that becomes readable when ``read`` has bytes, if there is one
+        (a device path); None for a pyserial URL or a file (read them with a timeout)."""
+        return None
 
     def write(self, data: bytes) -> None:
         raise NotImplementedError
@@ -83,6 +89,14 @@ class SerialTransport(Transport):
             # A readable fd with no bytes: the other end (pty master, USB) is gone.
             raise LinkLost(f"{self.url}: device closed")
         return data
+
+    def fileno(self) -> int | None:
+        if not self._fast:
+            return None
+        try:
+            return int(self._port.fileno())
+        except (OSError, ValueError, serial.SerialException):
+            return None
 
     def _read_url(self, max_bytes: int, timeout_s: float) -> bytes:
         """One byte with the timeout, then whatever else is there at once."""

@@ -11,9 +11,10 @@ predict/update; which gyro change goes with which odometry step is decided here 
 
 With an :class:`fusion.arrival.ArrivalOrder` (the pipeline's case: messages in arrival
 order as the stream drivers stamp them, bursts sharing one stamp) the messages are first
-put in stamp order (gyro restamped, odometry held until the gyro catches up, bursts and
-stale odometry dropped: see fusion.arrival). Without one the stamps are trusted (offline
-or simulated messages) and every odometry message is taken when it comes.
+put in stamp order (gyro restamped, odometry held only while the gyro sample covering it
+is due, bursts and stale odometry dropped: see fusion.arrival). Without one the stamps
+are trusted (offline or simulated messages) and every odometry message is taken when it
+comes.
 
 Then, per odometry step (fusion.increments: odometry poses -> steps, gyro angles ->
 changes that telescope), the decisions (:data:`Decision`):
@@ -178,6 +179,12 @@ class GyroOdometryAlignment:
         """Odometry messages the arrival-order stage dropped (bursts, stale)."""
         return 0 if self.arrival is None else self.arrival.dropped
 
+    @property
+    def late(self) -> int:
+        """Gyro samples that came after the odometry they precede was taken (their
+        rotation goes into the next step's gyro change)."""
+        return 0 if self.arrival is None else self.arrival.late
+
     # -- messages --------------------------------------------------------------------
     def feed_gyro(self, msg: GyroSample, filt: AlignedFilter) -> Advance | None:
         """Take a gyro sample; first the odometry it releases, if any (arrival order)."""
@@ -190,14 +197,15 @@ class GyroOdometryAlignment:
         return out
 
     def feed_odometry(self, msg: RobotOdometry, filt: AlignedFilter) -> Advance | None:
-        """Take an odometry message (or, in arrival order, the one it releases): None if
-        no step ran and no baseline was set (held, dropped, not newer)."""
-        if self.arrival is not None:
-            released = self.arrival.odometry(msg)
-            if released is None:
-                return None
-            msg = released
-        return self._take(msg, filt)
+        """Take an odometry message (or, in arrival order, those it releases: the last
+        one's step is returned): None if no step ran and no baseline was set (held,
+        dropped, not newer)."""
+        if self.arrival is None:
+            return self._take(msg, filt)
+        out = None
+        for released in self.arrival.odometry(msg):
+            out = self._take(released, filt) or out
+        return out
 
     def _take(self, msg: RobotOdometry, filt: AlignedFilter) -> Advance | None:
         step = self.odo.feed(msg)

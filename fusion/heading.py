@@ -370,6 +370,7 @@ class HeadingFilter(AlignedInput):
             "gyro_discontinuities": a.gyro.discontinuities,
             "gyro_bias_radps": a.bias.bias_radps,
             "odometry_dropped": a.dropped,
+            "gyro_late": a.late,
             "heading_lost": self.lost,
             "lost_steps": c.lost_steps,
             "encoder_bias_rad_per_m": float(self.c[0]),

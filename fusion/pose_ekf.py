@@ -182,6 +182,7 @@ class PoseEkf(AlignedInput, PoseEkfCore):
                 "gyro_misaligned": a.misaligned,
                 "gyro_timeouts": a.gyro_timeouts,
                 "odometry_dropped": a.dropped,
+                "gyro_late": a.late,
                 "gyro_stale": a.gyro_stale,
                 "gps_stale": self.gps_stale,
                 "gyro_bias_radps": a.bias.bias_radps,

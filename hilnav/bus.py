@@ -31,7 +31,7 @@ from typing import Any
 import zenoh
 
 import msgs
-from hilnav.topics import QUERIES, TOPICS, topic_type
+from hilnav.topics import EXPRESS, QUERIES, TOPICS, topic_type
 from msgs import GroundTruth, PoseBox
 
 PREFIX = "hilnav"
@@ -184,7 +184,7 @@ class Bus:
             cfg = cfg.to_zenoh()
         self.session = zenoh.open(cfg)
         self._attachment = robot.encode()
-        self._publishers: dict[str, Any] = {}
+        self._publishers: dict[tuple[str, str], Any] = {}
         self._declared: list[Any] = []
         self._token: Any = None
         self._closed = False
@@ -212,19 +212,25 @@ class Bus:
         self, robot: str, topic: str, data: bytes, schema_name: str, sender: str | None = None
     ) -> None:
         """Put an already encoded JSON payload on ``hilnav/<robot>/<topic>``."""
-        k = key(robot, topic)
-        pub = self._publishers.get(k)
+        pub = self._publishers.get((robot, topic))
         if pub is None:
-            with self._lock:
-                pub = self._publishers.get(k)
-                if pub is None:
-                    enc = zenoh.Encoding.APPLICATION_JSON.with_schema(schema_name)
-                    pub = self.session.declare_publisher(k, encoding=enc)
-                    self._publishers[k] = pub
-        att = self._attachment if sender is None else sender.encode()
-        pub.put(data, attachment=att)
+            pub = self._publisher(robot, topic, schema_name)
+        pub.put(data, attachment=self._attachment if sender is None else sender.encode())
         with self._lock:
             self.stats.published += 1
+
+    def _publisher(self, robot: str, topic: str, schema_name: str) -> Any:
+        """The publisher of ``hilnav/<robot>/<topic>``, declared once (express for the
+        topics of :data:`hilnav.topics.EXPRESS`: sent at once, not batched)."""
+        with self._lock:
+            pub = self._publishers.get((robot, topic))
+            if pub is None:
+                enc = zenoh.Encoding.APPLICATION_JSON.with_schema(schema_name)
+                pub = self.session.declare_publisher(
+                    key(robot, topic), encoding=enc, express=topic in EXPRESS
+                )
+                self._publishers[(robot, topic)] = pub
+            return pub
 
     # -- subscribing ---------------------------------------------------------------------
     def subscribe(self, robot: str, topic: str, callback: Callback) -> Any:

@@ -77,6 +77,16 @@ class CmdVelGate:
         self.last_reason = reason
         return None
 
+    def next_check(self) -> float:
+        """The earliest time :meth:`check` can stop the robot (inf while it is not moving):
+        a watchdog need not look before then, unless a command or a heartbeat comes."""
+        if not self.moving:
+            return math.inf
+        due = self.last_cmd_s + self.limits.timeout_s
+        if self.heartbeat_s is not None:
+            due = min(due, self.heartbeat_s + self.limits.stall_s)
+        return due
+
     def check(self, now: float) -> str | None:
         """``"timeout"`` or ``"stall"`` once when a moving robot must stop now, else None."""
         if not self.moving:

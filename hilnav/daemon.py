@@ -30,17 +30,25 @@ from typing import Any
 from hilnav.bus import Bus, ZenohSettings
 from hilnav.config import RobotConfig
 from hilnav.devices import make_drivers, with_fake_ports
+from hilnav.devloop import DeviceLoop
 from hilnav.fakeset import FakeProcess, FakeProcessError
 from hilnav.motion import MotionGuard
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
 from hilnav.runtime import RobotRuntime, RuntimeStats, StartError
 from hilnav.sinks import Sink, Sinks
-from hilnav.topics import DEVICE_TOPICS, raw_topic
+from hilnav.topics import DEVICE_TOPICS, PEER_TOPICS, raw_topic
 from msgs import DaemonStatus, DeviceDiagnostics, RawBytes, VelocityCommand
 
 DaemonError = StartError  # the daemon cannot start (fakes, log directory, Zenoh): says why
 DaemonStats = RuntimeStats
+# device messages the loop logs and publishes at once (the others in batches, at most
+# every 0.1 s): odometry goes out before the pose made of it (the log's views need it)
+PROMPT_TOPICS = frozenset({"odometry", "info"})
+# queued by Zenoh's callbacks and the watchdog, taken at the loop's next turn (no wake-up
+# of their own): logged only (truth, cmd_vel: the wheels got it in the callback), or
+# used by cooperative localization at its next step (peers' boxes, liveliness: topic "")
+LAZY_TOPICS = frozenset({"truth", "cmd_vel", "", *PEER_TOPICS})
 
 
 class Daemon:
@@ -68,6 +76,20 @@ class Daemon:
         self.fake: FakeProcess | None = None
         self._loop_thread: threading.Thread | None = None
         self._stopped = False
+        period = self.cfg.diagnostics_period_s
+        self._next_diag = time.monotonic() + period
+        self.loop = DeviceLoop(
+            self.runtime,
+            read_device=self._read_device,
+            prompt_topics=PROMPT_TOPICS,
+            start_thread=lambda name, drv: self._thread(self._reader, f"dev-{name}", name, drv),
+            heartbeat=self.motion.heartbeat,
+            on_tick=self._tick,
+            stop=self._stop,
+            beat_s=min(0.1, cfg.cmd_vel.stall_s / 4),
+        )
+        self.runtime.wake = self.loop.wake  # what other threads queue wakes the loop ...
+        self.runtime.lazy = LAZY_TOPICS  # ... but what it only logs, or uses at a step
 
     # the runtime's parts, as the daemon's
     @property
@@ -114,8 +136,9 @@ class Daemon:
             self.drivers = make_drivers(self.cfg, self._raw_hook)
             self.motion.driver = self.drivers.get("arcos")
             for name, drv in self.drivers.items():
-                self._thread(self._reader, f"dev-{name}", name, drv)
-            self._loop_thread = self._thread(self._service_loop, "services")
+                self._pending.setdefault(name, [])
+                self._thread(self._reader, f"dev-{name}", name, drv, True)
+            self._loop_thread = self._thread(self.loop.run, "services")
             self.motion.start()
             assert rt.bus is not None
             rt.bus.declare_alive()
@@ -158,15 +181,17 @@ class Daemon:
             return
         self._stopped = True
         self._stop.set()
+        self.loop.wake.set()
         self.runtime.closing.set()
         self.motion.halt()
-        for t in self._threads:
+        for t in list(self._threads):
             t.join(timeout=5.0 if t is self._loop_thread else 3.0)
         self.runtime.drain(publish=False)
         for drv in self.drivers.values():
             with contextlib.suppress(Exception):
                 drv.close()
         self.runtime.close()
+        self.loop.wake.close()  # after the bus: no producer is left to wake the loop
         if self.fake is not None:
             self.fake.stop()
 
@@ -192,29 +217,45 @@ class Daemon:
 
         return hook
 
-    def _reader(self, name: str, drv: Any) -> None:
-        try:
-            drv.open()
-        except Exception as exc:
-            drv.last_error = str(exc)
-            self.errors.append(f"{name}: {exc}")
-            print(f"hilnav run: {name}: {exc} (retrying)", file=sys.stderr, flush=True)
-        pending = self._pending.setdefault(name, [])  # the raw hook's items, then ours
-        put_read = self.runtime.put_read
-        while not self._stop.is_set():
+    def _reader(self, name: str, drv: Any, opening: bool = False) -> None:
+        """A device read by a thread of its own (no descriptor to wait on, or its link is
+        down: the driver reconnects itself in ``read``), until the loop can take it."""
+        if opening:
             try:
-                got = drv.read(0.2)
+                drv.open()
             except Exception as exc:
-                drv.last_error = f"read failed: {exc!r}"
+                drv.last_error = str(exc)
+                self.errors.append(f"{name}: {exc}")
+                print(f"hilnav run: {name}: {exc} (retrying)", file=sys.stderr, flush=True)
+        put_read = self.runtime.put_read
+        fileno = getattr(drv, "fileno", _none)
+        while not self._stop.is_set():
+            if fileno() is not None:
+                self.loop.adopt(name, drv)  # the link is up on a descriptor: the loop reads it
+                return
+            items = self._read_device(name, drv, 0.2)
+            if items:
+                put_read(items)
+
+    def _read_device(self, name: str, drv: Any, timeout_s: float) -> list[tuple[str, Any]]:
+        """One read of a device: the raw hook's items (its bytes), then its messages."""
+        pending = self._pending[name]
+        try:
+            got = drv.read(timeout_s)
+        except Exception as exc:
+            drv.last_error = f"read failed: {exc!r}"
+            if timeout_s > 0.0:
                 time.sleep(0.2)
-                got = []
-            for m in got:
-                topic = DEVICE_TOPICS.get(type(m))
-                if topic is not None:
-                    pending.append((topic, m))
-            if pending:
-                put_read(pending)
-                pending.clear()
+            got = ()
+        for m in got:
+            topic = DEVICE_TOPICS.get(type(m))
+            if topic is not None:
+                pending.append((topic, m))
+        if not pending:
+            return pending
+        items = pending[:]
+        pending.clear()
+        return items
 
     def _on_cmd_vel(self, robot: str, cmd: VelocityCommand) -> None:
         if self._stop.is_set():
@@ -231,20 +272,13 @@ class Daemon:
     def _fault(self, where: str, exc: BaseException) -> None:
         self.runtime.fault(where, exc)
 
-    # -- the service loop --------------------------------------------------------------------------
-    def _service_loop(self) -> None:
-        rt, period = self.runtime, self.cfg.diagnostics_period_s
-        next_diag = time.monotonic() + period
-        while not self._stop.is_set():
-            self.motion.heartbeat()
-            item = rt.next(0.05)
-            if item is not None:
-                rt.handle(item)
-            now = time.monotonic()
-            rt.expire_peers(now)
-            if now >= next_diag:
-                next_diag = now + period
-                rt.guard("diagnostics", self._diagnostics)
+    # -- the loop's periodic work -------------------------------------------------------------
+    def _tick(self, now: float) -> None:
+        rt = self.runtime
+        rt.expire_peers(now)
+        if now >= self._next_diag:
+            self._next_diag = now + self.cfg.diagnostics_period_s
+            rt.guard("diagnostics", self._diagnostics)
 
     def _diagnostics(self) -> None:
         stamp = time.time_ns()
@@ -266,6 +300,10 @@ class Daemon:
             cmd_timeouts=g.timeouts,
             cmd_stalls=g.stalls,
         )
+
+
+def _none() -> None:
+    return None
 
 
 def _fake_endpoint(z: ZenohSettings) -> str | None:

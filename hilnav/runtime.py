@@ -1,9 +1,10 @@
 """One robot's runtime: its services, its peers, the bus and the log, fed by one queue.
 
 The daemon (``hilnav run``) and every robot of ``hilnav fleet`` are a
-:class:`RobotRuntime`; only what feeds them differs (the daemon: one reader thread per
-device and its service loop thread; a fleet robot: the scenario's simulated devices, stepped
-by :mod:`hilnav.fleet.host`). The runtime owns:
+:class:`RobotRuntime`; only what feeds them differs (the daemon: its device loop,
+:mod:`hilnav.devloop`, which reads the devices and handles their reads itself,
+:meth:`handle_read`; a fleet robot: the scenario's simulated devices, stepped by
+:mod:`hilnav.fleet.host`). The runtime owns:
 
 - the :class:`hilnav.pipeline.Pipeline` of the robot's config (its mapping worker, if
   any, hands its outputs back here), or another pipeline with its interface (``pipeline``:
@@ -12,7 +13,8 @@ by :mod:`hilnav.fleet.host`). The runtime owns:
 - ONE queue (a ``queue.SimpleQueue``: put and get in C; its bound checked on its size):
   :meth:`put` one message, :meth:`put_read` the items of one device read (its raw bytes,
   then its messages) as ONE entry, from any thread (device readers, Zenoh's callbacks),
-  taken in arrival order by one consumer (:meth:`next` + :meth:`handle`, or :meth:`drain`);
+  taken in arrival order by one consumer (:meth:`next` or :meth:`take_queued`, then
+  :meth:`handle`; or :meth:`drain`); ``wake.set()`` on every put but of the ``lazy`` topics;
 - the :class:`hilnav.bus.Bus` (``[zenoh]``), the fleet's pose boxes and liveliness
   tokens (:meth:`declare_peers`) and the queryables ``pose``, ``map``, ``info``;
 - the :class:`hilnav.peers.PeerTable` (a peer is dropped when its token goes or its
@@ -113,6 +115,8 @@ class RobotRuntime:
         self.zenoh = zenoh or cfg.zenoh.settings()
         self.prog = prog
         self.wake = wake  # set on every put (a consumer serving several runtimes waits on it)
+        # topics whose put() does not set ``wake`` (the consumer takes them at its next turn)
+        self.lazy: frozenset[str] = frozenset()
         self.stats = RuntimeStats()
         self.errors: list[str] = []
         self._fault_kinds: set[tuple[str, str]] = set()
@@ -202,7 +206,7 @@ class RobotRuntime:
             self.stats.dropped += 1
         else:
             self._q.put(Item(topic, msg, recv_ns or time.time_ns(), peer))
-        if self.wake is not None:
+        if self.wake is not None and topic not in self.lazy:
             self.wake.set()
 
     def put_read(self, pending: list[tuple[str, Any]]) -> None:
@@ -256,13 +260,53 @@ class RobotRuntime:
     def drain(self, publish: bool = True) -> int:
         """Handle everything queued now; how many items."""
         n = 0
-        while True:
-            try:
-                entry = self._q.get_nowait()
-            except queue.Empty:
-                return n
+        for entry in self.take_queued():
             self.handle(entry, publish)
             n += len(entry) if type(entry) is list else 1
+        return n
+
+    def queued(self) -> int:
+        """Entries waiting in the queue."""
+        return self._q.qsize()
+
+    def take_queued(self) -> list[Item | list[Item]]:
+        """The entries queued now, taken out of the queue in order (for :meth:`handle`)."""
+        out: list[Item | list[Item]] = []
+        get = self._q.get_nowait
+        for _ in range(self._q.qsize()):
+            try:
+                out.append(get())
+            except queue.Empty:
+                break
+        return out
+
+    def handle_read(
+        self,
+        pending: list[tuple[str, Any]],
+        recv_ns: int | None = None,
+        publish: bool = True,
+        later: list[tuple[str, Any, int]] | None = None,
+        prompt: frozenset[str] = frozenset(),
+    ) -> None:
+        """One device read's ``(topic, msg)`` items, received at ``recv_ns`` (default now),
+        handled by the consumer's thread (the daemon's loop reads devices itself). With
+        ``later``, the items go to the services now but are logged and published by
+        :meth:`emit_later`, except those of a ``prompt`` topic (odometry, before its pose)."""
+        now = time.time_ns() if recv_ns is None else recv_ns
+        for topic, msg in pending:
+            try:
+                if later is None or topic in prompt:
+                    self._handle_own(topic, msg, now, publish)
+                else:
+                    later.append((topic, msg, now))
+                    self._handle_own(topic, msg, now, publish, False)
+            except Exception as exc:
+                self.fault("services", exc)
+
+    def emit_later(self, later: list[tuple[str, Any, int]], publish: bool = True) -> None:
+        """Log and publish the items :meth:`handle_read` left for later, in order."""
+        for topic, msg, recv_ns in later:
+            self.guard("services", self.emit, topic, msg, recv_ns, publish)
 
     def guard(self, where: str, fn: Any, *args: Any) -> None:
         """``fn(*args)``, an exception counted under ``where``."""
@@ -291,18 +335,26 @@ class RobotRuntime:
             self.guard("services", self.pipeline.drop_peer, robot)
 
     def _handle(self, item: Item, publish: bool) -> None:
-        topic, msg = item.topic, item.msg
-        self.stats.processed += 1
-        self.stats.by_topic[topic] = self.stats.by_topic.get(topic, 0) + 1
         if item.peer:
+            self.stats.processed += 1
+            self.stats.by_topic[item.topic] = self.stats.by_topic.get(item.topic, 0) + 1
             self._handle_peer(item)
             return
+        self._handle_own(item.topic, item.msg, item.recv_ns, publish)
+
+    def _handle_own(
+        self, topic: str, msg: Any, recv_ns: int, publish: bool, emit: bool = True
+    ) -> None:
+        stats = self.stats
+        stats.processed += 1
+        stats.by_topic[topic] = stats.by_topic.get(topic, 0) + 1
         if topic == "info":
             self.pipeline.latest["info"] = msg
-        self.emit(topic, msg, item.recv_ns, publish)
+        if emit:
+            self.emit(topic, msg, recv_ns, publish)
         self._publishing = publish
         try:
-            self.pipeline.feed(topic, msg, item.recv_ns)  # outputs: self._from_service
+            self.pipeline.feed(topic, msg, recv_ns)  # outputs: self._from_service
         finally:
             self._publishing = True
 

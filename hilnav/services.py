@@ -12,8 +12,8 @@ and no threads, so the same input gives the same output (replay relies on it).
   Both filters take the device messages in arrival order, as the stream drivers stamp
   them (a burst read at once shares one stamp): each gets a fusion.arrival.ArrivalOrder,
   and its alignment front end (fusion.alignment) hands it matched gyro/odometry
-  intervals. An odometry message's estimate may come out at the next gyro sample (the
-  message waits for the gyro to catch up).
+  intervals. An odometry message's estimate comes out at once when the gyro has caught
+  up with it, else at the arrival of the gyro sample that covers it.
 - :class:`LocalizationAdapter`: localization.cp.CPLocalizer, guaranteed boxes (ekf-vs-cp
   eq. 5) from bounded odometry, gyro and GPS errors, plus the other robots' boxes and
   this robot's range-bearing scans of them (``relative``, contracted all at once) ->

@@ -191,12 +191,28 @@ def test_odometry_waits_for_the_gyro_samples_arriving_after_it():
     assert rec_b.calls == [("predict", 100, pytest.approx(RATE * 0.09, abs=1e-12))]
 
 
-def test_odometry_before_the_gyro_sample_is_taken_first_and_a_silent_gyro_does_not_block():
+def test_odometry_the_gyro_caught_up_with_is_taken_at_once_else_it_waits_for_its_sample():
     a, rec = front()
-    assert feed(a, rec, [gyro(0), odo(0)]) == []  # held until the gyro passes it
-    assert feed(a, rec, [gyro(10)]) == [0]
-    assert feed(a, rec, [odo(100)]) == []
-    assert feed(a, rec, [odo(200)]) == [100]  # the gyro is silent: a newer SIP releases it
+    assert feed(a, rec, [gyro(0), odo(5)]) == [5]  # the gyro's next sample is due at 10
+    assert feed(a, rec, [gyro(t) for t in range(10, 91, 10)] + [odo(100)]) == []  # due at 100
+    assert feed(a, rec, [gyro(101)]) == [100]  # the sample that covers it releases it
+    assert a.arrival is not None and a.arrival.waited == 1
+    assert feed(a, rec, [odo(200)]) == []  # due at 111: held
+    assert feed(a, rec, [odo(300)]) == [200]  # the gyro is silent: a newer SIP releases it
+    assert feed(a, rec, [odo(1400)]) == [1400]  # silent > patience (1 s): not waited for
+    assert [c[1] for c in rec.calls[-2:]] == [300, 1400]  # the held one taken first
+    assert a.arrival.held is None
+
+
+def test_a_late_gyro_sample_is_counted_and_its_rotation_goes_into_the_next_step():
+    a, rec = front()
+    msgs: list[object] = [gyro(0), odo(0)] + [gyro(t) for t in range(10, 96, 5)] + [odo(100)]
+    msgs += [gyro(98)]  # read before the SIP of t=100, handed over after it
+    msgs += [gyro(t) for t in range(105, 196, 5)] + [odo(200)]
+    assert feed(a, rec, msgs) == [0, 100, 200]
+    assert a.late == 1
+    assert [c[0] for c in rec.calls] == ["predict", "predict"]
+    assert rec.calls[0][2] + rec.calls[1][2] == pytest.approx(RATE * 0.195, abs=1e-12)
 
 
 def test_stale_odometry_is_dropped_and_counted():
@@ -260,10 +276,13 @@ def test_an_odometry_jump_leaves_the_gyro_to_turn_over_the_lost_interval():
 
 
 @pytest.mark.parametrize("make", [HeadingFilter, PoseEkf], ids=["heading", "pose_ekf"])
-def test_filters_in_arrival_order_return_the_estimate_when_the_gyro_releases_the_odometry(make):
+def test_filters_in_arrival_order_return_the_estimate_when_the_odometry_is_taken(make):
     f = make(initial=Pose2D(), arrival=ArrivalOrder(100.0))
-    assert f.feed(gyro(0)) is None and f.feed(odo(0)) is None  # held for the gyro
-    est = f.feed(gyro(10))
-    assert est is not None and est.stamp_ns == 0
-    assert f.feed(odo(100, stamp_ms=90)) is None and f.feed(odo(50)) is None
+    assert f.feed(gyro(0)) is None
+    assert f.feed(odo(5)).stamp_ns == 5 * MS  # the gyro has caught up: at once
+    assert f.feed(gyro(10)) is None and f.feed(odo(100)) is None  # held for its gyro sample
+    est = f.feed(gyro(101))
+    assert est is not None and est.stamp_ns == 100 * MS
+    assert f.feed(odo(200, stamp_ms=190)) is None and f.feed(odo(150)) is None
     assert f.counters()["odometry_dropped"] == 1
+    assert f.counters()["gyro_late"] == 0

@@ -220,6 +220,13 @@ class ArcosDriver(LinkDiagnostics, ReconnectingLink):
             out.append(msg)
         return out
 
+    def fileno(self) -> int | None:
+        """The port's descriptor while the link is up and has one (a device path), for a
+        selector that calls ``read(0)`` when it is readable (and often enough for the
+        keep-alive: at least every ``pulse_s`` / 2); else None."""
+        t = self._t
+        return t.fileno() if self.connected and t is not None else None
+
     @property
     def _is_file(self) -> bool:
         return isinstance(self._t, FileTransport)

@@ -165,6 +165,20 @@ class IrCanDriver(LinkDiagnostics):
             self._drop(f"CAN {self.interface}:{self.channel}: board silent")
         return out
 
+    def fileno(self) -> int | None:
+        """The slcan adapter's port descriptor while the bus is up (for a selector that
+        calls ``read(0)`` when it is readable, and again while :meth:`buffered`); None
+        for other interfaces (read them with a timeout)."""
+        bus = self.bus
+        if self.connected and isinstance(bus, BlockSlcanBus):
+            return bus.fd
+        return None
+
+    def buffered(self) -> bool:
+        """Complete lines already read from the adapter and not yet decoded."""
+        bus = self.bus
+        return isinstance(bus, BlockSlcanBus) and bus.has_line()
+
     def _drop(self, why: str) -> None:
         self.last_error = why
         self.connected = False

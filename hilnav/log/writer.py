@@ -244,17 +244,20 @@ class LogWriter:
                 self._flush_locked()
 
     def _tick(self) -> None:
-        period = self._flush_s / 4.0
-        while not self._stop.wait(period):
+        """Flush the open chunk once ``flush_every_s`` x 0.75 of wall time passed since the
+        last flush (the writer's own log-time flushes count), fsync what was flushed;
+        asleep in between (no polling)."""
+        wait = self._flush_s * 0.75
+        while not self._stop.wait(max(wait, 0.01)):
             with self._lock:
                 if self._closed:
                     return
-                if (
-                    self._pending
-                    and time.monotonic() - self._last_flush_wall >= self._flush_s * 0.75
-                ):
+                since = time.monotonic() - self._last_flush_wall
+                if self._pending and since >= self._flush_s * 0.75:
                     self._flush_locked()
+                    since = 0.0
                 dirty, self._dirty = self._dirty, False
+            wait = self._flush_s * 0.75 - (since if self._pending else 0.0)
             if dirty:
                 self._sync()
 

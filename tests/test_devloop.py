@@ -1,0 +1,119 @@
+"""The daemon's device loop (hilnav.devloop), on emulated devices run in this process:
+every device whose port is a path is read by the loop itself (no thread per device); a
+port that vanishes goes to a thread of its own, which reconnects it (the Pioneer's sync
+handshake included) while the loop goes on reading the others, then hands it back; what
+other threads queue is handled in arrival order with the reads."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from hilnav.bus import free_tcp_port
+from hilnav.config import parse_config
+from hilnav.daemon import Daemon
+from hilnav.devices import with_fake_ports
+from hilnav.fakeset import build_fakes
+from msgs import GroundTruth, Pose2D
+
+DEVICES = {"arcos", "gyro", "ir", "gps"}
+
+
+def _wait(cond, timeout_s: float) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.02)
+    return bool(cond())
+
+
+def _device_threads() -> set[str]:
+    return {t.name for t in threading.enumerate() if t.name.startswith("dev-")}
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("devloop")
+    cfg = parse_config(
+        {
+            "name": "r1",
+            "zenoh": {"listen": [f"tcp/127.0.0.1:{free_tcp_port()}"]},
+            "log": {"dir": str(tmp)},
+            "services": {"mapping": {"enabled": False}, "localization": {"enabled": False}},
+            "simulation": {"seed": 3},
+        },
+        "<test>",
+    )
+    runner = build_fakes(cfg)
+    runner.start()
+    d = Daemon(with_fake_ports(cfg, runner.ports()), log_path=tmp / "r1.mcap")
+    assert not d.cfg.simulated  # the devices are this process's fakes: no child process
+    d.start()
+    emulators = {e.name: e for e in runner.emulators}
+    assert _wait(lambda: set(d.loop.looped) == DEVICES, 30.0), (d.loop.looped, d.errors)
+    yield d, emulators
+    d.stop()
+    for e in runner.emulators:
+        e.stop()
+
+
+def count(d: Daemon, topic: str) -> int:
+    return d.stats.by_topic.get(topic, 0)
+
+
+def test_every_device_on_a_port_path_is_read_by_the_loop_not_a_thread(rig):
+    d, _ = rig
+    n = {t: count(d, t) for t in ("odometry", "gyro", "ir")}
+    assert _wait(lambda: all(count(d, t) > n[t] + 5 for t in n), 5.0)
+    assert set(d.loop.looped) == DEVICES
+    assert not _device_threads()  # the opening threads handed their devices over and ended
+    assert d.loop.reads > 0 and d.loop.batches > 0
+
+
+@pytest.mark.parametrize("device", ["gyro", "arcos"])
+def test_a_vanished_port_is_reconnected_by_a_thread_while_the_loop_reads_the_others(rig, device):
+    d, emulators = rig
+    other = "odometry" if device == "gyro" else "gyro"
+    own = "gyro" if device == "gyro" else "odometry"
+    handovers = d.loop.handovers
+    emulators[device].port.vanish()
+    assert _wait(lambda: device not in d.loop.looped, 5.0)
+    assert f"dev-{device}" in _device_threads()
+    assert d.loop.handovers == handovers + 1
+    n_other = count(d, other)
+    time.sleep(0.5)
+    assert count(d, other) > n_other + 3  # the loop went on with the others
+    emulators[device].port.reappear()
+    n_own = count(d, own)
+    assert _wait(lambda: device in d.loop.looped and count(d, own) > n_own + 3, 15.0), d.errors
+    assert _wait(lambda: f"dev-{device}" not in _device_threads(), 2.0)  # handed back
+    assert d.drivers[device].reconnects >= 1
+
+
+def test_queued_entries_are_handled_in_arrival_order_with_the_reads(rig):
+    d, _ = rig
+    seen: list[tuple[str, int]] = []
+    real = d.runtime.emit
+
+    def emit(topic, msg, log_ns, publish=True):
+        if topic in ("truth", "gyro"):
+            seen.append((topic, log_ns))
+        return real(topic, msg, log_ns, publish)
+
+    d.runtime.emit = emit
+    try:
+        for k in range(20):  # lazy entries: no wake-up of their own
+            d.runtime.put("truth", GroundTruth(time.time_ns(), "r1", Pose2D(), 0.0, 0.0))
+            time.sleep(0.013 + 0.001 * k)
+        assert _wait(lambda: sum(t == "truth" for t, _ in seen) == 20, 2.0)
+    finally:
+        del d.runtime.emit
+    truths = [ns for t, ns in seen if t == "truth"]
+    assert truths == sorted(truths)  # in the order they were queued
+    # handled as the loop comes round for the devices, between the reads: not saved up
+    kinds = [t for t, _ in seen]
+    last = len(kinds) - 1 - kinds[::-1].index("truth")
+    assert "gyro" in kinds[kinds.index("truth") : last]
