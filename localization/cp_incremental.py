@@ -160,9 +160,8 @@ class _Axis:
         states from ``start`` on."""
         rows, r = self.rows, len(self.rows) - 1 - q
         del self.rl[start:], self.rh[start:]
-        for k in range(start, len(self.dl)):
-            self.rl.append(sorted([lo[k] for _, lo, _ in rows])[r])
-            self.rh.append(sorted([hi[k] for _, _, hi in rows])[q])
+        self.rl.extend(sorted(c)[r] for c in zip(*[lo[start:] for _, lo, _ in rows], strict=True))
+        self.rh.extend(sorted(c)[q] for c in zip(*[hi[start:] for _, _, hi in rows], strict=True))
 
     def box(self, k: int, w, mode: str) -> isc.Iv:
         """B of state k: the hard box met with its fix (q = 0) or the relaxed bounds."""
@@ -218,6 +217,7 @@ class IncrementalSolver:
         self.cfg = cfg
         self.solves = 0  # solves, and of them ...
         self.fresh = 0  # ... with the positions solved from the boxes
+        self.pause = 0  # solves left to the array solve after a fallback
         self.reset()
 
     def reset(self) -> None:
@@ -235,11 +235,18 @@ class IncrementalSolver:
     def solve(self, w, e: isc.Iv) -> SolutionF:
         """Contract the window ``w`` (``cp_solve.SlidingWindow``; ``e`` the wheelbase
         interval). :class:`Fallback` outside the common case; the kept solution is then
-        forgotten."""
+        forgotten, and the next ``window + 1`` solves fall back too."""
+        if self.pause:
+            self.pause -= 1
+            raise isc.Fallback
         try:
             return self._solve(w, e)
         except isc.Fallback:
+            # What did not apply (an empty box: the bounds were broken; unbounded
+            # headings) stays in the window until it has turned over: the array solve
+            # till then, rather than a failed try before it at every step.
             self.reset()
+            self.pause = max(self.cfg.window, 1) + 1
             raise
 
     def _align(self, w) -> tuple[int, int, list[list[int]]]:
@@ -340,21 +347,20 @@ class IncrementalSolver:
         at = [k for k, g in enumerate(w.gps) if g is not None]
         q = c.gps_outliers
         mode = "hard" if q == 0 else ("none" if len(at) <= q else "rows")
-        fresh = loose or mode != self.mode or kept == 0
         added = [k for k in at if k >= kept]  # fixes of new states, or new fixes:
+        refix = False  # a fix of a kept state changed
         if kept and w.gps[:kept] != self.gps[off:]:
             for k in range(kept):
                 g0, g1 = self.gps[off + k], w.gps[k]
                 if g0 != g1:
-                    if g0 is not None:
-                        fresh = True  # a fix changed: from the boxes
+                    refix = refix or g0 is not None
                     added.append(k)
+        fresh = loose or refix or mode != self.mode or kept == 0
         bad: list[int] = []
-        redo_all = False
+        rx_from = kept  # the relaxed bounds changed from this state on
         if mode == "rows":
-            links = l0 >= 0
-            fresh = self._rows(w, at, kept, added, q, fresh or links) or fresh
-            redo_all = bool(added)
+            lost, rx_from = self._rows(w, at, kept, added, q, refix, l0)
+            fresh = fresh or lost
             for k in at:
                 g = w.gps[k]
                 if not (
@@ -365,41 +371,63 @@ class IncrementalSolver:
         if fresh:
             self.fresh += 1
         for axis in (ax, ay):
-            if redo_all:
-                redo = list(range(kept))
-            else:
-                redo = sorted(set(changed[axis.i]) | {k for k in added if k < kept})
-            axis.positions(w, mode, kept, fresh, redo, l0)
+            redo = set(changed[axis.i]) | {k for k in added if k < kept}
+            axis.positions(w, mode, kept, fresh, sorted(redo.union(range(rx_from, kept))), l0)
         self.stamps = list(w.stamps)
         self.hard = [list(v) for v in (*w.lo, *w.hi)]
         self.gps = list(w.gps)
         return SolutionF(ax.sl[:], ax.sh[:], ay.sl[:], ay.sh[:], tl[:], th[:], False, bad)
 
-    def _rows(self, w, at: list[int], kept: int, added: list[int], q: int, fresh: bool) -> bool:
-        """The fixes' rows and relaxed bounds of both axes: rebuilt when ``fresh`` (or a
-        fix left the window: True is then returned, the positions start from the boxes),
-        else carried on to the new states, with rows for the ``added`` fixes."""
+    def _rows(
+        self, w, at: list[int], kept: int, added: list[int], q: int, rebuild: bool, l0: int
+    ) -> tuple[bool, int]:
+        """The fixes' rows and relaxed bounds of both axes: rebuilt when ``rebuild``
+        (another mode before, a fix changed), else the rows of the fixes still in the
+        window carried on (redone beyond the first changed link ``l0``, and to the new
+        states), with rows for the ``added`` fixes. Returns whether a fix left the
+        window (the relaxed bounds may widen: the positions start from the boxes) and
+        the first state whose relaxed bounds changed."""
         n, first = len(w.stamps), w.stamps[0]
+        rebuild = rebuild or self.mode != "rows"
+        lost = False
         for axis in (self.ax, self.ay):
             rows = [r for r in axis.rows if r[0] >= first]
-            fresh = fresh or len(rows) != len(axis.rows) or self.mode != "rows"
+            lost = lost or len(rows) != len(axis.rows)
             axis.rows = rows
+        state = {st: k for k, st in enumerate(w.stamps)}
+        start = kept
         for axis in (self.ax, self.ay):
             j = 2 * axis.i - 2
             dl, dh = axis.dl, axis.dh
-            if fresh:
+            if rebuild:
                 axis.rows = [
                     (w.stamps[k], *_row(k, (w.gps[k][j], w.gps[k][j + 1]), dl, dh, n)) for k in at
                 ]
+                start = 0
             else:
-                for _, lo, hi in axis.rows:  # carried on to the new states
-                    for k in range(len(lo), n):
+                rows = []
+                for st, lo, hi in axis.rows:
+                    k0 = state[st]
+                    if 0 <= l0 < k0:  # a link before the fix changed: the row redone
+                        g = (w.gps[k0][j], w.gps[k0][j + 1])
+                        rows.append((st, *_row(k0, g, dl, dh, n)))
+                        start = 0
+                        continue
+                    # carried on beyond the first changed link, and to the new states
+                    k1 = l0 + 1 if l0 >= 0 else len(lo)
+                    del lo[k1:], hi[k1:]
+                    for k in range(k1, n):
                         lo.append(_nx(lo[k - 1] + dl[k], -_INF))
                         hi.append(_nx(hi[k - 1] + dh[k], _INF))
+                    rows.append((st, lo, hi))
+                    start = min(start, k1)
                 for k in added:
                     g = (w.gps[k][j], w.gps[k][j + 1])
-                    axis.rows.append((w.stamps[k], *_row(k, g, dl, dh, n)))
-                axis.rows.sort(key=lambda r: r[0])
-            # more fixes tighten every state's relaxed bounds: all recomputed
-            axis.relaxed(q, 0 if fresh or added else kept)
-        return fresh
+                    rows.append((w.stamps[k], *_row(k, g, dl, dh, n)))
+                rows.sort(key=lambda r: r[0])
+                axis.rows = rows
+                if lost or added:  # another set of fixes: every state's order statistics
+                    start = 0
+        for axis in (self.ax, self.ay):
+            axis.relaxed(q, start)
+        return lost, start
