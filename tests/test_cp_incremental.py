@@ -234,6 +234,7 @@ CASES = [  # seed, window, q, gps_every, gps jumps (robot 0 step, dx, dy)
     (4, 30, 2, 4, ((0, 15, -14.0, 5.0), (0, 31, 9.0, 9.0))),
     (5, 3, 1, 1, ()),
     (6, 40, 2, 10, ()),
+    (7, 8, 0, 1, ((0, 25, 15.0, -12.0),)),  # a jump with q = 0: relaxed, array solve
 ]
 
 
@@ -252,6 +253,9 @@ def test_incremental_solves_equal_solves_from_the_boxes(seed, window, q, gps_eve
 
     _run(sc, 0, cfg, [a, b], np.random.default_rng(seed), check)
     assert a._inc.fresh < a._inc.solves  # the incremental path ran
+    # a jump beyond q: relaxed (by the array solve) while it is in the window, then the
+    # float solve again
+    assert (a.relaxations > 0) == bool(jumps and q == 0) and a._inc.pause == 0
 
 
 def _boxes(cp):
