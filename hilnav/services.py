@@ -169,7 +169,6 @@ class LocalizationAdapter:
         self._gps: GpsFix | None = None  # a fix held for the next step
 
     def feed(self, topic: str, msg: Any) -> Outputs:
-        box = None
         if isinstance(msg, GyroSample):
             if math.isfinite(msg.angle_rad):
                 if self._gyro0 is None:
@@ -177,46 +176,48 @@ class LocalizationAdapter:
                 self._gyro = msg
             return []
         if isinstance(msg, RobotOdometry):
-            box = self._odometry(msg)
+            changed = self._odometry(msg)
         elif isinstance(msg, GpsFix):
-            box = self._fix(msg)
+            changed = self._fix(msg)
         elif isinstance(msg, RelativeScan) and msg.robot == self.robot and msg.seen:
-            box = self.cp.feed_relatives(list(msg.seen))
-        if box is None:
+            changed = self.cp.take_relatives(list(msg.seen))
+        else:
             return []
-        if self._last_ns is not None and box.stamp_ns - self._last_ns < self.period_ns:
+        if not changed:
             return []
-        self._last_ns = box.stamp_ns
-        return [("pose_box", box)]
+        # The box is made only when it is published (the CP state is the same either way).
+        stamp = self.cp.stamp_ns
+        if self._last_ns is not None and stamp - self._last_ns < self.period_ns:
+            return []
+        self._last_ns = stamp
+        return [("pose_box", self.cp.box())]
 
-    def _odometry(self, msg: RobotOdometry) -> PoseBox | None:
-        box = self.cp.feed_odometry(msg)
-        if box is not None and self._odom_ns is not None:
+    def _odometry(self, msg: RobotOdometry) -> bool:
+        stepped = self.cp.take_odometry(msg)
+        if stepped and self._odom_ns is not None:
             self._odom_dt_ns = msg.stamp_ns - self._odom_ns
-        if box is not None:
+        if stepped:
             self._odom_ns = msg.stamp_ns
+        changed = stepped
         g = self._gyro
         if g is not None and self.cp.started and self._gyro0 is not None:
             # map heading = initial yaw + the gyro's turn since its first sample
-            angle = self.yaw0 + (g.angle_rad - self._gyro0)
-            box = self.cp.feed_gyro(
-                GyroSample(g.stamp_ns, g.rate_radps, angle, g.angle_wrapped_rad)
-            )
+            changed = self.cp.take_gyro(g.stamp_ns, self.yaw0 + (g.angle_rad - self._gyro0))
             self._gyro = None
         held = self._gps
         if held is not None and held.stamp_ns <= msg.stamp_ns:
             self._gps = None
-            box = self.cp.feed_gps(held) or box
-        return box
+            changed = self.cp.take_gps(held) or changed
+        return changed
 
-    def _fix(self, fix: GpsFix) -> PoseBox | None:
+    def _fix(self, fix: GpsFix) -> bool:
         if self._gps is not None:  # the step it waited for did not come: use it now
             held, self._gps = self._gps, None
-            self.cp.feed_gps(held)
+            self.cp.take_gps(held)
         if self._odom_ns is not None and 2 * (fix.stamp_ns - self._odom_ns) > self._odom_dt_ns > 0:
             self._gps = fix  # nearer the next odometry step than the latest
-            return None
-        return self.cp.feed_gps(fix)
+            return False
+        return self.cp.take_gps(fix)
 
     def feed_other(self, robot: str, topic: str, msg: Any) -> Outputs:
         """A peer's box (a box that claims another robot than its sender is ignored)."""

@@ -8,13 +8,17 @@ bounds), the GPS position boxes, the gyro heading intervals, and (cooperative ca
 range-bearing measurements to other robots whose own boxes arrive over the bus.
 
 - ``localization.cp_config``: :class:`CPConfig`, the error bounds and solver settings;
-- ``localization.cp_window``: the window's arrays and the array-level API (states,
-  GPS, headings, position boxes, range-bearing to peers; prediction between solves);
-- ``localization.cp_solve``: the contraction of the window (heading chain, eq. (2)
-  displacements, x/y chains with the q-relaxed GPS, optional HC4);
+- ``localization.cp_solve``: the window's lists and the contraction of the window on
+  interval arrays (heading chain, eq. (2) displacements, x/y chains with the q-relaxed
+  GPS, optional HC4): the reference;
+- ``localization.cp_incremental``: the same contraction on floats, from what changed
+  since the last solve (the daemon's case: one new state per step; bounds at least as
+  tight as the reference's, which it falls back to where it does not apply);
+- ``localization.cp_window``: the array-level API (states, GPS, headings, position
+  boxes, range-bearing to peers; prediction between solves);
 - ``localization.cp_scalar``: the one-box contraction against peers on floats (the
   daemon's case, one box per step; same bounds as the array path, which it falls back
-  to; ``SlidingWindowCP.scalar_path = False`` forces the array path);
+  to); ``SlidingWindowCP.scalar_path = False`` forces the array paths everywhere;
 - here: :class:`CPLocalizer`, which turns messages into those calls, keeps the peers'
   latest boxes, and reports boxes as messages.
 
@@ -27,6 +31,7 @@ Message-level API (what the daemon's pipeline calls)::
     loc.feed_peer_box(PoseBox) -> None                    # another robot's latest box
     loc.feed_relative(RelativeMeasurement) -> PoseBox | None
     loc.feed_relatives(list[RelativeMeasurement]) -> PoseBox | None   # all peers at once
+    loc.take_odometry / take_gyro / take_gps / take_relatives -> bool  # the same, no box
     loc.drop_peer(robot)                                  # a peer left: carry on alone
     loc.feed(msg) -> PoseBox | None                       # dispatch on the type
     loc.box() -> PoseBox ; loc.window_boxes() -> list[PoseBox]  # smoothed window
@@ -141,41 +146,59 @@ class CPLocalizer(SlidingWindowCP):
     def feed_odometry(self, odom: RobotOdometry) -> PoseBox | None:
         """One step per odometry message; wheel travel from the change of the odometry
         pose (inverse of eq. (1)-(2))."""
+        return self.box() if self.take_odometry(odom) else None
+
+    def feed_gyro(self, g: GyroSample) -> PoseBox | None:
+        return self.box() if self.take_gyro(g.stamp_ns, g.angle_rad) else None
+
+    def feed_gps(self, fix: GpsFix) -> PoseBox | None:
+        return self.box() if self.take_gps(fix) else None
+
+    # The feeds without the box: True where the state changed (the box is then ``box()``).
+    def take_odometry(self, odom: RobotOdometry) -> bool:
+        """:meth:`feed_odometry` without the box."""
         prev, self._last_odom = self._last_odom, odom
         if prev is None:
             self._ensure_started(odom.stamp_ns)
-            return self.box()
+            return True
         if odom.stamp_ns <= prev.stamp_ns:
             self._skip("odometry_out_of_order")
             self._last_odom = prev
-            return None
+            return False
         dsr, dsl = wheels_from_poses(
             prev.pose, odom.pose, self.cfg.wheelbase_m, self.cfg.kappa, self.cfg.chord
         )
         if not (math.isfinite(dsr) and math.isfinite(dsl)):
             self._skip("odometry_invalid")
-            return None
+            return False
         self.step(odom.stamp_ns, dsr, dsl)
-        return self.box()
+        return True
 
-    def feed_gyro(self, g: GyroSample) -> PoseBox | None:
-        if not self.started or not math.isfinite(g.angle_rad):
+    def take_gyro(self, stamp_ns: int, angle_rad: float) -> bool:
+        """:meth:`feed_gyro` of a sample's stamp and angle, without the box."""
+        if not self.started or not math.isfinite(angle_rad):
             self._skip("gyro_before_start" if self.started is False else "gyro_invalid")
-            return None
+            return False
         if self._gyro_t0 is None:
-            self._gyro_t0 = g.stamp_ns
+            self._gyro_t0 = stamp_ns
         c = self.cfg
-        bound = c.gyro_bound_rad + c.gyro_drift_bound_radps * abs(g.stamp_ns - self._gyro_t0) * 1e-9
-        self.heading(g.stamp_ns, IV.around(g.angle_rad + c.gyro_offset_rad, bound))
-        return self.box()
+        bound = c.gyro_bound_rad + c.gyro_drift_bound_radps * abs(stamp_ns - self._gyro_t0) * 1e-9
+        self.heading_f(stamp_ns, *isc.around(angle_rad + c.gyro_offset_rad, bound))
+        return True
 
-    def feed_gps(self, fix: GpsFix) -> PoseBox | None:
+    def take_gps(self, fix: GpsFix) -> bool:
+        """:meth:`feed_gps` without the box."""
         en = self._gps_position(fix, self.cfg.min_gps_mode)
         if en is None:
-            return None
+            return False
         self._ensure_started(fix.stamp_ns)
         self.gps(fix.stamp_ns, *en)
-        return self.box()
+        return True
+
+    @property
+    def stamp_ns(self) -> int:
+        """Stamp of the latest state (that of :meth:`box`)."""
+        return int(self._w.stamps[-1])
 
     def feed_peer_box(self, box: PoseBox) -> None:
         """Keep another robot's latest box (with its stamp) for relative measurements."""
@@ -195,9 +218,13 @@ class CPLocalizer(SlidingWindowCP):
     def feed_relatives(self, ms: list[RelativeMeasurement]) -> PoseBox | None:
         """Range-bearing measurements to several peers at once (vectorised), each used
         with that peer's latest box widened by ``speed_bound * |stamp difference|``."""
+        return self.box() if self.take_relatives(ms) else None
+
+    def take_relatives(self, ms: list[RelativeMeasurement]) -> bool:
+        """:meth:`feed_relatives` without the box."""
         if not self.started:
             self._skip("relative_before_start")
-            return None
+            return False
         use = []
         for m in ms:
             peer = self.peers.get(m.target)
@@ -214,10 +241,10 @@ class CPLocalizer(SlidingWindowCP):
                 continue
             use.append((m, peer))
         if not use:
-            return None
+            return False
         c, now = self.cfg, self._w.stamps[-1]
         if self.scalar_path and self._relatives_f(use, now):
-            return self.box()
+            return True
         # Peer box -> measurement time (peer's motion), measurement -> state time (own).
         dt_peer = np.array([abs(m.stamp_ns - p.stamp_ns) * 1e-9 for m, p in use])
         dt_own = np.array([abs(m.stamp_ns - now) * 1e-9 for m, _ in use])
@@ -227,8 +254,7 @@ class CPLocalizer(SlidingWindowCP):
         rho = IV.around([m.range_m for m, _ in use], [m.range_bound_m for m, _ in use])
         beta = IV.around([m.bearing_rad for m, _ in use], [m.bearing_bound_rad for m, _ in use])
         beta = beta.inflate(c.yaw_rate_bound_radps * dt_own)
-        ok = self.relative(now, px, py, rho, beta)
-        return self.box() if ok else None
+        return self.relative(now, px, py, rho, beta)
 
     def _relatives_f(self, use: list[tuple[RelativeMeasurement, PoseBox]], now: int) -> bool:
         """:meth:`feed_relatives`' boxes as floats, through the scalar path
@@ -237,17 +263,11 @@ class CPLocalizer(SlidingWindowCP):
         for m, p in use:
             dt_own = abs(m.stamp_ns - now) * 1e-9
             grow = c.speed_bound_mps * (abs(m.stamp_ns - p.stamp_ns) * 1e-9 + dt_own)
-            rho = _around(m.range_m, m.range_bound_m)
+            rho = isc.around(m.range_m, m.range_bound_m)
             beta = isc.inflate(
-                _around(m.bearing_rad, m.bearing_bound_rad), c.yaw_rate_bound_radps * dt_own
+                isc.around(m.bearing_rad, m.bearing_bound_rad), c.yaw_rate_bound_radps * dt_own
             )
             px = isc.inflate((p.x.lo, p.x.hi), grow)
             py = isc.inflate((p.y.lo, p.y.hi), grow)
             peers.append((px, py, rho, beta))
         return bool(self.relative_f(now, peers))
-
-
-def _around(mid: float, rad: float) -> isc.Iv:
-    """``IV.around`` for one interval."""
-    r = abs(rad)
-    return math.nextafter(mid - r, -math.inf), math.nextafter(mid + r, math.inf)

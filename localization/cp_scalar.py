@@ -214,11 +214,50 @@ def odometry_displacement(
         if not (math.isfinite(iv[0]) and math.isfinite(iv[1])) or _e(iv):
             raise Fallback
     ds = mul(add(dsr, dsl), (0.5, 0.5))
-    dth = meet_ne(div(sub(dsr, dsl), e), sub(th1, th0))
-    phi = meet_ne(
-        add(th0, mul(dth, (kappa, kappa))), sub(th1, mul(dth, (1.0 - kappa, 1.0 - kappa)))
-    )
-    length = mul(ds, sinc_half(dth)) if chord else ds
+    return displacement_dth(th0, th1, ds, div(sub(dsr, dsl), e), kappa, chord)
+
+
+def displacement_dth(
+    th0: Iv, th1: Iv, ds: Iv, dth: Iv, kappa: float, chord: bool
+) -> tuple[Iv, Iv, Iv]:
+    """eq. (2) forward from finite non-empty headings ``th0``, ``th1`` and the step's
+    wheel terms of eq. (1), ``ds`` = (dSr + dSl)/2 and ``dth`` = (dSr - dSl)/e:
+    (dx, dy, dtheta), :class:`Fallback` on an empty or unbounded result. The meets,
+    sums and products by the point ``kappa`` written out (the same operations as
+    meet_ne, add, sub and mul: one ``nextafter`` per bound)."""
+    a0, b0 = th0
+    a1, b1 = th1
+    # dth = dth & (th1 - th0)
+    lo, hi = _nx(a1 - b0, -_INF), _nx(b1 - a0, _INF)
+    dl = dth[0] if dth[0] > lo else lo
+    dh = dth[1] if dth[1] < hi else hi
+    if not dl <= dh:
+        raise Fallback
+    # phi = (th0 + dth * kappa) & (th1 - dth * (1 - kappa))
+    k0, k1 = dl * kappa, dh * kappa
+    m0, m1 = (k0, k1) if k0 <= k1 else (k1, k0)
+    u = 1.0 - kappa
+    k0, k1 = dl * u, dh * u
+    n0, n1 = (k0, k1) if k0 <= k1 else (k1, k0)
+    lo = _nx(a0 + _nx(m0, -_INF), -_INF)
+    hi = _nx(b0 + _nx(m1, _INF), _INF)
+    lo2 = _nx(a1 - _nx(n1, _INF), -_INF)
+    hi2 = _nx(b1 - _nx(n0, -_INF), _INF)
+    if lo2 > lo:
+        lo = lo2
+    if hi2 < hi:
+        hi = hi2
+    if not lo <= hi:
+        raise Fallback
+    phi = (lo, hi)
+    d = (dl, dh)
+    length = mul(ds, sinc_half(d)) if chord else ds
     if not (math.isfinite(length[0]) and math.isfinite(length[1])):
         raise Fallback
-    return mul(length, cos(phi)), mul(length, sin(phi)), dth
+    return mul(length, cos(phi)), mul(length, sin(phi)), d
+
+
+def displacement(th0: Iv, th1: Iv, ds: Iv, dth: Iv, kappa: float, chord: bool) -> tuple[Iv, Iv]:
+    """:func:`displacement_dth` without dtheta: the (dx, dy) of a window step."""
+    dx, dy, _ = displacement_dth(th0, th1, ds, dth, kappa, chord)
+    return dx, dy

@@ -18,11 +18,18 @@ per step (prior, gyro headings, peer contractions) and GPS position boxes:
 
 Steps 2-4 are repeated up to ``iterations`` times, until no box shrinks by more than
 ``tol`` (relative width).
+
+Here too the window's per-step lists (:class:`SlidingWindow`, which the array-level API
+of ``localization.cp_window`` fills) and the solution as lists (:class:`SolutionF`).
+This array solve is the reference; the daemon's solve is the incremental one on floats
+(``localization.cp_incremental``), at least as tight, which falls back to this one.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +37,70 @@ from localization.chain import chain, relaxed_chain
 from localization.contractors import contract_odometry, odometry_displacement
 from localization.cp_config import CPConfig
 from localization.interval import IV
+
+TH, X, Y = 0, 1, 2  # the axes of the hard boxes
+
+
+@dataclass
+class SlidingWindow:
+    """The window's per-step lists, oldest first: stamps, hard boxes (never dropped: the
+    prior, gyro headings, peer contractions) as lower and upper bounds per axis
+    (``lo[TH]``, ``hi[X]``, ...; the whole line where nothing is known), at most one
+    GPS box per step (relaxable by the solver), and the wheel displacement intervals of
+    the step into each state (index 0 unused)."""
+
+    stamps: list[int] = field(default_factory=list)
+    lo: list[list[float]] = field(default_factory=lambda: [[], [], []])
+    hi: list[list[float]] = field(default_factory=lambda: [[], [], []])
+    # GPS per step: (x_lo, x_hi, y_lo, y_hi, stamp) or None.
+    gps: list[tuple[float, float, float, float, int] | None] = field(default_factory=list)
+    dsr: list[tuple[float, float]] = field(default_factory=list)
+    dsl: list[tuple[float, float]] = field(default_factory=list)
+    # The float solve's terms per step (localization.cp_incremental.StepTerms; None: not
+    # made yet).
+    terms: list[Any] = field(default_factory=list)
+
+    def append(
+        self,
+        stamp_ns: int,
+        hard: tuple[IV | None, IV | None, IV | None],
+        dsr: tuple[float, float],
+        dsl: tuple[float, float],
+        terms: Any = None,
+    ) -> None:
+        """A new latest state with hard boxes ``hard`` (x, y, theta; None: the whole
+        line)."""
+        self.stamps.append(int(stamp_ns))
+        for i, iv in ((X, hard[0]), (Y, hard[1]), (TH, hard[2])):
+            self.lo[i].append(-math.inf if iv is None else float(iv.lo))
+            self.hi[i].append(math.inf if iv is None else float(iv.hi))
+        self.gps.append(None)
+        self.dsr.append(dsr)
+        self.dsl.append(dsl)
+        self.terms.append(terms)
+
+    def drop_oldest(self, state1: tuple[tuple[float, float], ...]) -> None:
+        """Drop state 0, its knowledge kept by meeting the solved box ``state1``
+        ((lo, hi) of theta, x, y) of state 1 into state 1's hard boxes."""
+        for i, (lo, hi) in enumerate(state1):
+            self.lo[i][1] = max(self.lo[i][1], lo)
+            self.hi[i][1] = min(self.hi[i][1], hi)
+        for lst in (self.stamps, *self.lo, *self.hi, self.gps, self.dsr, self.dsl, self.terms):
+            del lst[0]
+
+    def hard_latest(self) -> tuple[IV, IV, IV]:
+        """The latest state's hard boxes x, y, theta."""
+        return tuple(IV.of(self.lo[i][-1], self.hi[i][-1]) for i in (X, Y, TH))  # type: ignore[return-value]
+
+    def arrays(self) -> WindowArrays:
+        hx, hy, hth = (IV.of(np.array(self.lo[i]), np.array(self.hi[i])) for i in (X, Y, TH))
+        r = np.array(self.dsr[1:], dtype=float).reshape(-1, 2)
+        l = np.array(self.dsl[1:], dtype=float).reshape(-1, 2)
+        dsr, dsl = IV.of(r[:, 0], r[:, 1]), IV.of(l[:, 0], l[:, 1])
+        has = np.array([g is not None for g in self.gps])
+        g = np.array([gg[:4] if gg is not None else (0.0, 0.0, 0.0, 0.0) for gg in self.gps])
+        gx, gy = IV.of(g[:, 0], g[:, 1]), IV.of(g[:, 2], g[:, 3])
+        return WindowArrays(hx, hy, hth, dsr, dsl, has, gx, gy)
 
 
 @dataclass(frozen=True)
@@ -58,6 +129,32 @@ class WindowSolution:
     th: IV
     relaxed: bool
     inconsistent_gps: np.ndarray
+
+
+@dataclass
+class SolutionF:
+    """:class:`WindowSolution` as lists of floats (x, y, theta lows and highs of every
+    state), as the window keeps it."""
+
+    xl: list[float]
+    xh: list[float]
+    yl: list[float]
+    yh: list[float]
+    tl: list[float]
+    th: list[float]
+    relaxed: bool
+    inconsistent_gps: list[int]
+
+    def __len__(self) -> int:
+        return len(self.tl)
+
+    def last(self) -> tuple[tuple[float, float], ...]:
+        return (self.xl[-1], self.xh[-1]), (self.yl[-1], self.yh[-1]), (self.tl[-1], self.th[-1])
+
+    def drop_first(self) -> None:
+        """The solution of the window without its oldest state."""
+        for v in (self.xl, self.xh, self.yl, self.yh, self.tl, self.th):
+            del v[0]
 
 
 def solve_window(a: WindowArrays, c: CPConfig, e: IV) -> WindowSolution:

@@ -1,5 +1,5 @@
 """Interval localization over a sliding window of past states (ekf-vs-cp.txt eq. (5)):
-the window's per-step arrays and the array-level API that fills and reads them.
+the array-level API that fills the window (``cp_solve.SlidingWindow``) and reads it.
 
 Every state of the window keeps hard boxes (never dropped: the prior, gyro headings,
 peer contractions), at most one GPS box (relaxable by the solver), and the wheel
@@ -7,8 +7,11 @@ displacement intervals of the step into it (eq. (1), bounds from the wheel error
 When a state leaves the window its solved box becomes a hard prior of the next one, so
 nothing learnt is lost and the cost per step is bounded.
 
-The window is solved (``localization.cp_solve``) once per step (at the next ``step``,
-or on :meth:`SlidingWindowCP.solve`); between solves the latest box is the one-step
+The window is solved once per step (at the next ``step``, or on
+:meth:`SlidingWindowCP.solve`): on floats, incrementally (``localization.cp_incremental``:
+from what changed since the last solve; bounds at least as tight as the array solve's),
+or by the array solve of ``localization.cp_solve`` where that does not apply or when
+``scalar_path`` is False. Between solves the latest box is the one-step
 prediction from the solved window (eq. (2) in interval arithmetic) met with the step's
 GPS box (when no outliers are tolerated) and the hard boxes (gyro, peers). Later
 measurements thus tighten earlier boxes, and the earlier boxes the current one.
@@ -17,7 +20,6 @@ measurements thus tighten earlier boxes, and the earlier boxes the current one.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,85 +27,33 @@ from localization import cp_scalar as cps
 from localization import interval_scalar as isc
 from localization.contractors import contract_range_bearing, fixpoint, odometry_displacement
 from localization.cp_config import CPConfig
-from localization.cp_solve import WindowArrays, solve_window
+from localization.cp_incremental import IncrementalSolver, StepTerms
+from localization.cp_solve import TH, SlidingWindow, SolutionF, X, Y, solve_window
 from localization.intake import MessageIntake
 from localization.interval import IV, align_angle, meet_angle
-
-_WHOLE = (-math.inf, math.inf)
-
-
-@dataclass
-class SlidingWindow:
-    """Per-step lists of the window, oldest first."""
-
-    stamps: list[int] = field(default_factory=list)
-    # Hard per-step boxes (lo, hi) of x, y, theta.
-    hx: list[list[float]] = field(default_factory=list)
-    hy: list[list[float]] = field(default_factory=list)
-    hth: list[list[float]] = field(default_factory=list)
-    # GPS per step: (x_lo, x_hi, y_lo, y_hi, stamp) or None.
-    gps: list[tuple[float, float, float, float, int] | None] = field(default_factory=list)
-    # Wheel displacement intervals of the step *into* each state (index 0 unused).
-    dsr: list[tuple[float, float]] = field(default_factory=list)
-    dsl: list[tuple[float, float]] = field(default_factory=list)
-
-    def append(
-        self,
-        stamp_ns: int,
-        hard: tuple[IV | None, IV | None, IV | None],
-        dsr: tuple[float, float],
-        dsl: tuple[float, float],
-    ) -> None:
-        """A new latest state with hard boxes ``hard`` (None: the whole line)."""
-        self.stamps.append(int(stamp_ns))
-        for lst, iv in zip((self.hx, self.hy, self.hth), hard, strict=True):
-            lst.append(list(_WHOLE) if iv is None else [float(iv.lo), float(iv.hi)])
-        self.gps.append(None)
-        self.dsr.append(dsr)
-        self.dsl.append(dsl)
-
-    def drop_oldest(self, x: IV, y: IV, th: IV) -> None:
-        """Drop state 0, its knowledge kept by meeting the solved boxes ``x``, ``y``,
-        ``th`` of the window into state 1's hard boxes."""
-        for lst, iv in ((self.hx, x), (self.hy, y), (self.hth, th)):
-            lst[1] = [max(lst[1][0], float(iv.lo[1])), min(lst[1][1], float(iv.hi[1]))]
-        for lst in (self.stamps, self.hx, self.hy, self.hth, self.gps, self.dsr, self.dsl):
-            del lst[0]
-
-    def hard_latest(self) -> tuple[IV, IV, IV]:
-        return IV.of(*self.hx[-1]), IV.of(*self.hy[-1]), IV.of(*self.hth[-1])
-
-    def arrays(self) -> WindowArrays:
-        hx = IV.of(*np.array(self.hx, dtype=float).T)
-        hy = IV.of(*np.array(self.hy, dtype=float).T)
-        hth = IV.of(*np.array(self.hth, dtype=float).T)
-        r = np.array(self.dsr[1:], dtype=float).reshape(-1, 2)
-        l = np.array(self.dsl[1:], dtype=float).reshape(-1, 2)
-        dsr, dsl = IV.of(r[:, 0], r[:, 1]), IV.of(l[:, 0], l[:, 1])
-        has = np.array([g is not None for g in self.gps])
-        g = np.array([gg[:4] if gg is not None else (0.0, 0.0, 0.0, 0.0) for gg in self.gps])
-        gx, gy = IV.of(g[:, 0], g[:, 1]), IV.of(g[:, 2], g[:, 3])
-        return WindowArrays(hx, hy, hth, dsr, dsl, has, gx, gy)
 
 
 class SlidingWindowCP(MessageIntake):
     """Array-level sliding-window constraint propagation for one robot (module doc)."""
 
-    #: Contract one box against peers on floats (``localization.cp_scalar``) where it
-    #: applies; False: always the array path (the reference, for tests and benches).
+    #: Solve the window and contract one box against peers on floats
+    #: (``localization.cp_solve_scalar``, ``localization.cp_scalar``) where that applies;
+    #: False: always the array path (the reference, for tests and benches).
     scalar_path: bool = True
 
     def __init__(self, config: CPConfig | None = None) -> None:
         self.cfg = config or CPConfig()
         self._w = SlidingWindow()
-        self._sol: tuple[IV, IV, IV] | None = None
-        self._pred: tuple[IV, IV, IV] | None = None
+        self._sol: SolutionF | None = None
+        self._pred: tuple[isc.Iv, isc.Iv, isc.Iv] | None = None
         self._dirty = True
         self._soft = True  # dirty for a reason other than a new hard box
         self.dropped_gps: list[int] = []  # stamps of GPS fixes found inconsistent
         self.skipped: dict[str, int] = {}
         self.relaxations = 0  # solves that needed more than gps_outliers
         self.e = IV.around(self.cfg.wheelbase_m, self.cfg.wheelbase_bound_m)
+        self._ef = (float(self.e.lo), float(self.e.hi))
+        self._inc = IncrementalSolver(self.cfg)
 
     @property
     def started(self) -> bool:
@@ -121,51 +71,48 @@ class SlidingWindowCP(MessageIntake):
         if not self.started:
             raise RuntimeError("CPLocalizer.step before start")
         c = self.cfg
-        br = c.wheel_abs_bound_m + c.wheel_rel_bound * abs(dsr)
-        bl = c.wheel_abs_bound_m + c.wheel_rel_bound * abs(dsl)
-        r, l = IV.around(dsr, br), IV.around(dsl, bl)
+        r = isc.around(dsr, c.wheel_abs_bound_m + c.wheel_rel_bound * abs(dsr))
+        l = isc.around(dsl, c.wheel_abs_bound_m + c.wheel_rel_bound * abs(dsl))
         # Solve the finished window once (its smoothed last state seeds the prediction).
         if self._soft or self._sol is None:
             self._solve()
         if len(self._w.stamps) >= max(c.window, 1) + 1:
             self._slide()
-        rr, ll = (float(r.lo), float(r.hi)), (float(l.lo), float(l.hi))
-        pred = self._predict_f(rr, ll) if self.scalar_path else None
+        terms = StepTerms(r, l, self._ef) if self.scalar_path else None
+        pred = self._predict_f(terms) if terms is not None else None
         if pred is None:
+            ri, li = IV.of(*r), IV.of(*l)
             x0, y0, th0 = self._latest()
             dx, dy, dth = odometry_displacement(
-                th0, th0 + (r - l) / self.e, r, l, self.e, c.kappa, c.chord
+                th0, th0 + (ri - li) / self.e, ri, li, self.e, c.kappa, c.chord
             )
-            pred = (x0 + dx, y0 + dy, th0 + dth)
-        self._w.append(stamp_ns, (None, None, None), rr, ll)
+            pred = _floats(x0 + dx), _floats(y0 + dy), _floats(th0 + dth)
+        self._w.append(stamp_ns, (None, None, None), r, l, terms)
         self._pred = pred
         self._dirty = self._soft = True
 
-    def _predict_f(self, r: isc.Iv, l: isc.Iv) -> tuple[IV, IV, IV] | None:
-        """The one-step prediction of :meth:`step` (eq. (2) forward) on floats; None
-        where the scalar path does not apply (an unbounded or empty heading)."""
+    def _predict_f(self, t: StepTerms) -> tuple[isc.Iv, isc.Iv, isc.Iv] | None:
+        """The one-step prediction of :meth:`step` (eq. (2) forward) on floats from the
+        step's wheel terms; None where the scalar path does not apply (an unbounded or
+        empty heading)."""
         x0, y0, th0 = self._latest_f()
-        e = (float(self.e.lo), float(self.e.hi))
+        if not (math.isfinite(th0[0]) and math.isfinite(th0[1]) and th0[0] <= th0[1]):
+            return None
         try:
-            dx, dy, dth = cps.odometry_displacement(
-                th0,
-                isc.add(th0, isc.div(isc.sub(r, l), e)),
-                r,
-                l,
-                e,
-                self.cfg.kappa,
-                self.cfg.chord,
+            dx, dy, dth = cps.displacement_dth(
+                th0, isc.add(th0, t.dth), t.ds, t.dth, self.cfg.kappa, self.cfg.chord
             )
         except isc.Fallback:
             return None
-        return tuple(IV.of(*isc.add(a, b)) for a, b in ((x0, dx), (y0, dy), (th0, dth)))  # type: ignore[return-value]
+        return isc.add(x0, dx), isc.add(y0, dy), isc.add(th0, dth)
 
     def _slide(self) -> None:
         """Drop the oldest state; its knowledge survives as the next state's prior."""
-        if self._soft or self._sol is None:
-            self._solve()
-        self._w.drop_oldest(*self._sol)
-        self._sol = tuple(v[1:] for v in self._sol)
+        sol = self._solve() if self._soft or self._sol is None else self._sol
+        self._w.drop_oldest(
+            ((sol.tl[1], sol.th[1]), (sol.xl[1], sol.xh[1]), (sol.yl[1], sol.yh[1]))
+        )
+        sol.drop_first()
         self._soft = False
 
     def _age_s(self, stamp_ns: int) -> float:
@@ -178,30 +125,34 @@ class SlidingWindowCP(MessageIntake):
         b = (
             self.cfg.gps_bound_m if bound is None else bound
         ) + self.cfg.speed_bound_mps * self._age_s(stamp_ns)
-        xi, yi = IV.around(east, b), IV.around(north, b)
-        self._w.gps[-1] = (float(xi.lo), float(xi.hi), float(yi.lo), float(yi.hi), int(stamp_ns))
+        (xl, xh), (yl, yh) = isc.around(east, b), isc.around(north, b)
+        self._w.gps[-1] = (xl, xh, yl, yh, int(stamp_ns))
         self._dirty = self._soft = True
 
     def heading(self, stamp_ns: int, theta: IV) -> None:
         """A guaranteed heading interval for the latest state (e.g. the gyro's)."""
+        self.heading_f(stamp_ns, float(theta.lo), float(theta.hi))
+
+    def heading_f(self, stamp_ns: int, lo: float, hi: float) -> None:
+        """:meth:`heading` of the interval [lo, hi]."""
         if not self.started:
             raise RuntimeError("CPLocalizer.heading before start")
-        theta = theta.inflate(self.cfg.yaw_rate_bound_radps * self._age_s(stamp_ns))
-        self._hard(self._w.hth, theta, angle=True)
+        iv = (lo, hi) if lo <= hi else isc.EMPTY
+        lo, hi = isc.inflate(iv, self.cfg.yaw_rate_bound_radps * self._age_s(stamp_ns))
+        self._hard_f(TH, lo, hi, angle=True)
 
     def position_box(self, x: IV, y: IV) -> None:
         """A hard (never dropped) position box for the latest state."""
-        self._hard(self._w.hx, x)
-        self._hard(self._w.hy, y)
+        self._hard_f(X, float(x.lo), float(x.hi))
+        self._hard_f(Y, float(y.lo), float(y.hi))
 
-    def _hard(self, lst: list[list[float]], iv: IV, angle: bool = False) -> None:
-        self._hard_f(lst, float(iv.lo), float(iv.hi), angle)
-
-    def _hard_f(self, lst: list[list[float]], lo: float, hi: float, angle: bool = False) -> None:
-        cur = lst[-1]
+    def _hard_f(self, i: int, lo: float, hi: float, angle: bool = False) -> None:
+        """Meet [lo, hi] into the latest state's hard box of axis ``i`` (TH, X, Y)."""
+        los, his = self._w.lo[i], self._w.hi[i]
+        cur = (los[-1], his[-1])
         if angle and not self.scalar_path:  # the reference of the scalar path
             iv = IV.of(lo, hi)
-            known = IV.of(cur[0], cur[1]) & self._theta_ref()
+            known = IV.of(*cur) & IV.of(*self._theta_ref())
             if np.isneginf(known.lo) and np.isposinf(known.hi):
                 iv = align_angle(iv, 0.0)
             else:
@@ -211,37 +162,41 @@ class SlidingWindowCP(MessageIntake):
             # Meet modulo 2*pi, inside what is known of this heading already (its hard box
             # and the latest solution or prediction: all in the chain's representation),
             # over every branch of ``iv`` that meets it.
-            ref = self._theta_ref()
-            known = isc.meet((cur[0], cur[1]), (float(ref.lo), float(ref.hi)))
+            known = isc.meet(cur, self._theta_ref())
             if known == (-math.inf, math.inf):
                 # Nothing known of any heading of the window yet: the representation is
                 # free (shifting every heading by 2*pi*k keeps every constraint), so the
                 # first heading fixes it on the branch of ``iv`` next to 0.
-                iv = align_angle(IV.of(lo, hi), 0.0)
-                lo, hi = float(iv.lo), float(iv.hi)
+                lo, hi = _floats(align_angle(IV.of(lo, hi), 0.0))
             elif lo <= hi:
                 lo, hi = isc.meet_angle_s(known, (lo, hi))
             else:
                 lo, hi = isc.EMPTY
-        cur[0] = max(cur[0], lo)
-        cur[1] = min(cur[1], hi)
+        los[-1] = max(cur[0], lo)
+        his[-1] = min(cur[1], hi)
         self._dirty = True
 
-    def _theta_ref(self) -> IV:
-        n = len(self._w.stamps)
-        if self._sol is not None and self._sol[2].lo.shape[0] == n and not self._soft:
-            return self._sol[2][-1]
-        if self._pred is not None and self._sol is not None and self._sol[2].lo.shape[0] == n - 1:
+    def _theta_ref(self) -> isc.Iv:
+        """What the window knows of the latest heading: its solution, or the prediction
+        from the last solution."""
+        n, sol = len(self._w.stamps), self._sol
+        m = -1 if sol is None else len(sol)
+        if sol is not None and m == n and not self._soft:
+            return sol.tl[-1], sol.th[-1]
+        if self._pred is not None and m == n - 1:
             return self._pred[2]
-        if self._sol is not None and self._sol[2].lo.shape[0] == n:
-            return self._sol[2][-1]
-        return IV.entire(())
+        if sol is not None and m == n:
+            return sol.tl[-1], sol.th[-1]
+        return -math.inf, math.inf
 
     def relative(self, stamp_ns: int, peer_x: IV, peer_y: IV, rho: IV, beta: IV) -> bool:
         """Range ``rho`` and bearing ``beta`` (own body frame) to peers inside the boxes
         ``peer_x x peer_y`` (valid at ``stamp_ns``; arrays of shape (m,) for m peers at
         once). Contracts the latest state; returns False (and changes nothing) if the
-        measurements are inconsistent with it."""
+        measurements are inconsistent with it. No peer (m = 0): nothing to contract,
+        True."""
+        if any(np.size(a) == 0 for v in (peer_x, peer_y, rho, beta) for a in (v.lo, v.hi)):
+            return True
         if self.scalar_path:
             peers = _peer_tuples(peer_x, peer_y, rho, beta)
             if peers is not None and self.relative_f(stamp_ns, peers):
@@ -264,7 +219,7 @@ class SlidingWindowCP(MessageIntake):
             self._skip("inconsistent_relative")
             return False
         self.position_box(xi, yi)
-        self._hard(self._w.hth, thi, angle=True)
+        self._hard_f(TH, float(thi.lo), float(thi.hi), angle=True)
         return True
 
     def relative_f(self, stamp_ns: int, peers: list[tuple[isc.Iv, ...]]) -> bool | None:
@@ -283,9 +238,9 @@ class SlidingWindowCP(MessageIntake):
             )
         except isc.Fallback:
             return None
-        self._hard_f(self._w.hx, xl, xh)
-        self._hard_f(self._w.hy, yl, yh)
-        self._hard_f(self._w.hth, tl, th, angle=True)
+        self._hard_f(X, xl, xh)
+        self._hard_f(Y, yl, yh)
+        self._hard_f(TH, tl, th, angle=True)
         return True
 
     def _latest(self) -> tuple[IV, IV, IV]:
@@ -296,19 +251,19 @@ class SlidingWindowCP(MessageIntake):
 
     def _latest_iv(self) -> tuple[IV, IV, IV]:
         """:meth:`_latest_f` on interval arrays (the reference of the scalar path)."""
-        w = self._w
+        w, sol = self._w, self._sol
         n = len(w.stamps)
-        if self._sol is not None and not self._soft and self._sol[0].lo.shape[0] == n:
-            x, y, th = (v[-1] for v in self._sol)
-        elif self._pred is not None and self._sol is not None and self._sol[0].lo.shape[0] == n - 1:
-            x, y, th = self._pred
+        if sol is not None and not self._soft and len(sol) == n:
+            x, y, th = (IV.of(*v) for v in sol.last())
+        elif self._pred is not None and sol is not None and len(sol) == n - 1:
+            x, y, th = (IV.of(*v) for v in self._pred)
             g = w.gps[-1]
             if g is not None and self.cfg.gps_outliers == 0:
                 x, y = x & IV.of(g[0], g[1]), y & IV.of(g[2], g[3])
                 if bool(x.is_empty() | y.is_empty()):
-                    x, y, th = (v[-1] for v in self._solve())
+                    x, y, th = (IV.of(*v) for v in self._solve().last())
         else:
-            x, y, th = (v[-1] for v in self._solve())
+            x, y, th = (IV.of(*v) for v in self._solve().last())
         hx, hy, hth = w.hard_latest()
         return x & hx, y & hy, th & hth
 
@@ -318,32 +273,31 @@ class SlidingWindowCP(MessageIntake):
         unless outliers are tolerated) met with the hard boxes added since. Valid, and
         the window solve at the next step (or :meth:`solve`) brings in the smoothing and
         relaxation. Empties are (inf, -inf)."""
-        w = self._w
+        w, sol = self._w, self._sol
         n = len(w.stamps)
-        sol = self._sol
-        if sol is not None and not self._soft and sol[0].lo.shape[0] == n:
-            x, y, th = (_last(v) for v in sol)
-        elif self._pred is not None and sol is not None and sol[0].lo.shape[0] == n - 1:
-            x, y, th = ((float(v.lo), float(v.hi)) for v in self._pred)
+        if sol is not None and not self._soft and len(sol) == n:
+            x, y, th = sol.last()
+        elif self._pred is not None and sol is not None and len(sol) == n - 1:
+            x, y, th = self._pred
             g = w.gps[-1]
             if g is not None and self.cfg.gps_outliers == 0:
                 x, y = isc.meet(x, (g[0], g[1])), isc.meet(y, (g[2], g[3]))
                 if x == isc.EMPTY or y == isc.EMPTY:  # inconsistent fix: let the solver relax
-                    x, y, th = (_last(v) for v in self._solve())
+                    x, y, th = self._solve().last()
         else:
-            x, y, th = (_last(v) for v in self._solve())
+            x, y, th = self._solve().last()
         # hth and th are both in the chain's representation of the heading (every hard
-        # heading is met inside it by _hard): a plain intersection.
+        # heading is met inside it by _hard_f): a plain intersection.
+        lo, hi = w.lo, w.hi
         return (
-            isc.meet(x, tuple(w.hx[-1])),
-            isc.meet(y, tuple(w.hy[-1])),
-            isc.meet(th, tuple(w.hth[-1])),
+            isc.meet(x, (lo[X][-1], hi[X][-1])),
+            isc.meet(y, (lo[Y][-1], hi[Y][-1])),
+            isc.meet(th, (lo[TH][-1], hi[TH][-1])),
         )
 
     def solve(self) -> tuple[IV, IV, IV]:
         """Solve the whole window now; returns the latest box."""
-        x, y, th = self._solve()
-        return x[-1], y[-1], th[-1]
+        return tuple(IV.of(*v) for v in self._solve().last())  # type: ignore[return-value]
 
     def current(self) -> tuple[IV, IV, IV]:
         """Box (x, y, theta) of the latest state (theta unwrapped). Hard boxes added
@@ -352,22 +306,41 @@ class SlidingWindowCP(MessageIntake):
         return self._latest()
 
     def window_arrays(self) -> tuple[list[int], IV, IV, IV]:
-        x, y, th = self._solve()
+        s = self._solve()
+        a = np.array
+        x, y, th = IV(a(s.xl), a(s.xh)), IV(a(s.yl), a(s.yh)), IV(a(s.tl), a(s.th))
         return list(self._w.stamps), x, y, th
 
-    def _solve(self) -> tuple[IV, IV, IV]:
+    def _solve(self) -> SolutionF:
         if not self._dirty and self._sol is not None:
             return self._sol
-        s = solve_window(self._w.arrays(), self.cfg, self.e)
+        s = None
+        if self.scalar_path:
+            try:
+                s = self._inc.solve(self._w, self._ef)
+            except isc.Fallback:
+                s = None
+        if s is None:
+            a = solve_window(self._w.arrays(), self.cfg, self.e)
+            bounds = (a.x.lo, a.x.hi, a.y.lo, a.y.hi, a.th.lo, a.th.hi)
+            s = SolutionF(
+                *(v.tolist() for v in bounds),  # type: ignore[arg-type]
+                relaxed=bool(a.relaxed),
+                inconsistent_gps=a.inconsistent_gps.tolist(),
+            )
         if s.relaxed:
             self.relaxations += 1
         for k in s.inconsistent_gps:
-            st = self._w.gps[k][4]
+            st = self._w.gps[k][4]  # type: ignore[index]
             if st not in self.dropped_gps:
                 self.dropped_gps.append(st)
-        self._sol = (s.x, s.y, s.th)
+        self._sol = s
         self._dirty = self._soft = False
-        return self._sol
+        return s
+
+
+def _floats(v: IV) -> isc.Iv:
+    return float(v.lo), float(v.hi)
 
 
 def _peer_tuples(px: IV, py: IV, rho: IV, beta: IV) -> list[tuple[isc.Iv, ...]] | None:
@@ -379,10 +352,6 @@ def _peer_tuples(px: IV, py: IV, rho: IV, beta: IV) -> list[tuple[isc.Iv, ...]] 
         return None
     cols = [c * n if len(c) == 1 else c for c in cols]
     return [((a, b), (c, d), (e, f), (g, h)) for a, b, c, d, e, f, g, h in zip(*cols, strict=True)]
-
-
-def _last(v: IV) -> isc.Iv:
-    return float(v.lo[-1]), float(v.hi[-1])
 
 
 def _meet(v: IV) -> IV:

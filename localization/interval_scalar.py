@@ -95,6 +95,13 @@ def neg(a: Iv) -> Iv:
     return _EMPTY if _e(a) else (-a[1], -a[0])
 
 
+def around(mid: float, rad: float) -> Iv:
+    """``IV.around``: [mid - |rad|, mid + |rad|] rounded outward (empty if NaN)."""
+    r = abs(rad)
+    lo, hi = _nx(mid - r, -_INF), _nx(mid + r, _INF)
+    return (lo, hi) if lo <= hi else _EMPTY
+
+
 def inflate(a: Iv, r: float) -> Iv:
     r = abs(r)
     return _EMPTY if _e(a) else (_nx(a[0] - r, -_INF), _nx(a[1] + r, _INF))
