@@ -13,10 +13,14 @@ decoded type with fewer fields than gpsd accepts, or a date out of range, is cou
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
+
 import numpy as np
 
 from drivers.base import CodecStats
 from drivers.nmea.epoch import EpochCombiner
+from drivers.nmea.fastpath import FAST, reference
 from drivers.nmea.local import Datum
 from drivers.nmea.sentences import Sentence
 from drivers.nmea.session import HANDLERS
@@ -38,11 +42,28 @@ for _i, _c in enumerate(b"0123456789ABCDEF"):
     _HEXVAL[_c] = _i
 for _i, _c in enumerate(b"abcdef"):
     _HEXVAL[_c] = 10 + _i
-_NOT_ALNUM = np.ones(256, dtype=bool)
-_NOT_ALNUM[list(b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz")] = False
-# what the vectorised checks say of a line: a sentence (proprietary: GOOD_P), a wrong
-# checksum, a bad address (fewer than 3 characters or not alphanumeric), anything else
-GOOD, GOOD_P, BAD_SUM, BAD_ADDRESS, OTHER = 0, 1, 2, 3, 4
+# what the vectorised checks say of a line: a sentence with the right checksum (its
+# address still to be checked), a wrong checksum, anything else (the per-line path)
+GOOD, BAD_SUM, OTHER = 0, 1, 2
+_ADDRESS_CACHE = 256
+_ADDRESSES: dict[str, tuple[str, str] | tuple[()]] = {}
+
+
+def _address(address: str) -> tuple[str, str] | tuple[()]:
+    """(talker, type) of a sentence's address ("GP", "GGA"; "P", "GRMZ" for ``$PGRMZ``), or
+    () when it is not one (fewer than 3 characters, or not all letters and digits)."""
+    tk = _ADDRESSES.get(address)
+    if tk is None:
+        if len(address) < 3 or not (address.isalnum() and address.isascii()):
+            tk = ()
+        elif address[0] == "P":  # proprietary: $P<maker><type>
+            tk = ("P", address[1:])
+        else:
+            tk = (address[:2], address[2:])
+        if len(_ADDRESSES) >= _ADDRESS_CACHE:
+            _ADDRESSES.clear()
+        _ADDRESSES[address] = tk
+    return tk
 
 
 def _prefix_xor(data: bytes) -> bytes:
@@ -57,11 +78,9 @@ def _prefix_xor(data: bytes) -> bytes:
 
 def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
     """Every line of a run of complete ASCII lines, checked at once with numpy: (starts,
-    ends without a CR, ends of the address, verdicts). A sentence (GOOD, GOOD_P) is
-    ``$...*HH`` of printable bytes, one ``$``, no longer than ``max_line``, the XOR of the
-    bytes between ``$`` and ``*`` equal to HH, an address (up to the first comma) of 3 or
-    more letters and digits; BAD_SUM and BAD_ADDRESS fail only that; OTHER is anything
-    else (the per-line path)."""
+    ends without a CR, verdicts). A GOOD line is ``$...*HH`` of printable bytes, one
+    ``$``, no longer than ``max_line``, the XOR of the bytes between ``$`` and ``*`` equal
+    to HH; BAD_SUM fails only the XOR; OTHER is anything else (the per-line path)."""
     a = np.frombuffer(region, dtype=np.uint8)
     nl = np.flatnonzero(a == 10)
     starts = np.concatenate(([0], nl + 1))
@@ -74,15 +93,14 @@ def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
     ok[ok] = (a[s] == 36) & (a[e - 3] == 42)  # "$" ... "*"
     # one "$" per line and no byte that is not printable: counted between their positions
     dollars = np.flatnonzero(a == 36)
-    odd = np.flatnonzero((a < 32) | (a > 126))
-    ok &= np.searchsorted(dollars, ends) - np.searchsorted(dollars, starts) == 1
-    ok &= np.searchsorted(odd, ends) == np.searchsorted(odd, starts)
+    odd = np.flatnonzero(a - np.uint8(32) > 94)  # below 32 or above 126 (uint8 wraps)
+    ok &= dollars.searchsorted(ends) - dollars.searchsorted(starts) == 1
+    ok &= odd.searchsorted(ends) == odd.searchsorted(starts)
     s, e = starts[ok], ends[ok]
     hi, lo = _HEXVAL[a[e - 2]], _HEXVAL[a[e - 1]]
     hexed = (hi >= 0) & (lo >= 0)
     ok[ok] = hexed
     verdict = np.where(ok, GOOD, OTHER)
-    cut = ends - 3  # the address ends at the first comma, else at the "*"
     good = np.flatnonzero(ok)
     if len(good):
         s, e, hi, lo = s[hexed], e[hexed], hi[hexed], lo[hexed]
@@ -90,22 +108,14 @@ def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
         bounds[0::2] = s + 1
         bounds[1::2] = e - 3
         xor = np.bitwise_xor.reduceat(a, bounds)[0::2]  # of the bytes between "$" and "*"
-        commas = np.flatnonzero(a == 44)
-        first = (
-            commas[np.minimum(np.searchsorted(commas, s), len(commas) - 1)] if len(commas) else e
-        )
-        c = np.where((first > s) & (first < e - 3), first, e - 3)
-        cut[good] = c
-        other = np.flatnonzero(_NOT_ALNUM[a])
-        bad_address = (c - s < 4) | (np.searchsorted(other, c) != np.searchsorted(other, s + 1))
-        verdict[good] = np.where(
-            xor != hi * 16 + lo, BAD_SUM, np.where(bad_address, BAD_ADDRESS, a[s + 1] == 80)
-        )
-    return starts.tolist(), ends.tolist(), cut.tolist(), verdict.tolist()
+        verdict[good] = np.where(xor != hi * 16 + lo, BAD_SUM, GOOD)
+    return starts.tolist(), ends.tolist(), verdict.tolist()
 
 
 class NmeaFramer:
-    """Bytes -> checked :class:`Sentence` objects (any talker, any type)."""
+    """Bytes -> checked sentences (any talker, any type): :meth:`feed` gives
+    :class:`Sentence` objects, :meth:`feed_raw` each sentence's address and the text of
+    its fields (what the codec reads)."""
 
     def __init__(self, require_checksum: bool = True, max_line: int = 128) -> None:
         self.require_checksum = require_checksum
@@ -117,9 +127,18 @@ class NmeaFramer:
         self._buf = bytearray()
 
     def feed(self, data: bytes) -> list[Sentence]:
+        return [
+            _sentence(Sentence, (*_address(address), tuple(rest.split(","))))
+            for address, _, rest in self.feed_raw(data)
+        ]
+
+    def feed_raw(self, data: bytes) -> list[tuple[str, str, str]]:
+        """The checked sentences completed by ``data``, each as ``(address, ",", fields)``
+        (``"GPGGA"``, the text between the first comma and the ``*``; what
+        ``str.partition`` gives)."""
         buf = self._buf
         buf += data
-        out: list[Sentence] = []
+        out: list[tuple[str, str, str]] = []
         end = buf.rfind(b"\n")
         if end >= 0:
             region = bytes(buf[:end])
@@ -139,7 +158,7 @@ class NmeaFramer:
             del buf[:cut]
         return out
 
-    def _lines(self, region: bytes, out: list[Sentence]) -> None:
+    def _lines(self, region: bytes, out: list) -> None:
         """Every line of a run of complete lines. The usual line (``$...*HH``, printable
         ASCII, short enough, right checksum) is checked for the whole run at once, with
         numpy from ``_NUMPY_FROM`` bytes on (:func:`_classify`), else with one prefix XOR
@@ -180,42 +199,38 @@ class NmeaFramer:
                 stats.bad_checksums += 1
                 stats.bytes_skipped += len(line)
                 continue
-            address, _, rest = line[1:star].partition(",")
-            if len(address) < 3 or not address.isalnum():
+            parts = line[1:star].partition(",")
+            if not (_ADDRESSES.get(parts[0]) or _address(parts[0])):
                 stats.bytes_skipped += len(line)
                 continue
             stats.frames_ok += 1
-            if address[0] == "P":  # proprietary: $P<maker><type>
-                append(_sentence(Sentence, ("P", address[1:], tuple(rest.split(",")))))
-            else:
-                append(_sentence(Sentence, (address[:2], address[2:], tuple(rest.split(",")))))
+            append(parts)
 
-    def _checked(
-        self, region: bytes, starts: list, ends: list, cuts: list, verdicts: list, out: list
-    ) -> None:
+    def _checked(self, region: bytes, starts: list, ends: list, verdicts: list, out: list) -> None:
         """The lines of :func:`_classify`'s verdicts: sentences, counts, or :meth:`_line`."""
         text = region.decode("ascii")
         stats = self.stats
         append = out.append
-        skipped = 0
-        for s, e, c, verdict in zip(starts, ends, cuts, verdicts, strict=True):
+        skipped = ok = 0
+        addresses = _ADDRESSES
+        for s, e, verdict in zip(starts, ends, verdicts, strict=True):
             if verdict == GOOD:
-                fields = tuple(text[c + 1 : e - 3].split(","))
-                append(_sentence(Sentence, (text[s + 1 : s + 3], text[s + 3 : c], fields)))
-            elif verdict == GOOD_P:  # proprietary: $P<maker><type>
-                fields = tuple(text[c + 1 : e - 3].split(","))
-                append(_sentence(Sentence, ("P", text[s + 2 : c], fields)))
+                parts = text[s + 1 : e - 3].partition(",")
+                if addresses.get(parts[0]) or _address(parts[0]):
+                    append(parts)
+                    ok += 1
+                else:
+                    skipped += e - s
             elif verdict == OTHER:
                 end = region.find(b"\n", s)
                 self._line(region[s : len(region) if end < 0 else end], out)
             else:
                 skipped += e - s
-                if verdict == BAD_SUM:
-                    stats.bad_checksums += 1
-        stats.frames_ok += verdicts.count(GOOD) + verdicts.count(GOOD_P)
+                stats.bad_checksums += 1
+        stats.frames_ok += ok
         stats.bytes_skipped += skipped
 
-    def _line(self, line: bytes, out: list[Sentence]) -> None:
+    def _line(self, line: bytes, out: list) -> None:
         start = line.rfind(b"$")
         if start < 0:
             if line.strip(b"\r"):
@@ -256,20 +271,23 @@ class NmeaFramer:
             return
         else:
             body = text[1:]
-        address, _, rest = body.partition(",")
-        if len(address) < 3 or not address.isalnum():
+        parts = body.partition(",")
+        if not _address(parts[0]):
             self.stats.bytes_skipped += len(line)
             return
         self.stats.frames_ok += 1
-        if address[0] == "P":  # proprietary: $P<maker><type>
-            out.append(Sentence("P", address[1:], tuple(rest.split(","))))
-        else:
-            out.append(Sentence(address[:2], address[2:], tuple(rest.split(","))))
+        out.append(parts)
 
 
 class NmeaCodec:
     """Bytes -> :class:`msgs.GpsFix` per epoch and :class:`msgs.GpsSky` when the sky
-    changed (see :mod:`drivers.nmea.epoch`)."""
+    changed (see :mod:`drivers.nmea.epoch`).
+
+    Each sentence is routed by its address (``GPGGA``, looked up once per address): the
+    ordinary sentences of the common types take :mod:`drivers.nmea.fastpath`, any other
+    the reference path (:meth:`EpochCombiner.add_into`); ``fast=False`` sends every
+    sentence the reference way (the tests compare the two). A framer whose ``feed`` is
+    overridden (one that watches the sentences) is read through its ``feed``."""
 
     def __init__(
         self,
@@ -277,29 +295,50 @@ class NmeaCodec:
         max_line: int = 128,
         datum: Datum | None = None,
         rollover_before_year: int | None = None,
+        fast: bool = True,
     ) -> None:
         self.framer = NmeaFramer(require_checksum, max_line)
         self.combiner = EpochCombiner(datum, rollover_before_year)
         self.stats = self.framer.stats
         self.ignored = 0  # well-formed sentences of types not decoded (TXT, ...)
+        self._fast = FAST if fast else {}
+        self._routes: dict[str, Callable[[str, int, list], None]] = {}  # address -> reader
 
     @property
     def malformed(self) -> int:
         """Sentences of decoded types whose fields do not parse (``stats.malformed``)."""
         return self.stats.malformed
 
+    def _route(self, talker: str, kind: str) -> Callable[[str, int, list], None]:
+        """What reads a sentence of this talker and type: ``route(rest, stamp_ns, out)``."""
+        if talker == "P":
+            kind = "P" + kind
+        elif kind in self._fast:
+            return partial(self._fast[kind], self.combiner, talker)
+        if kind in HANDLERS:
+            return partial(reference, self.combiner, talker, kind)
+        return self._ignore
+
+    def _ignore(self, rest: str, stamp_ns: int, out: list) -> None:
+        self.ignored += 1
+
     def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix | GpsSky]:
         out: list[GpsFix | GpsSky] = []
-        add = self.combiner.add_into
         session = self.combiner.session
         before = session.malformed
-        for talker, kind, fields in self.framer.feed(data):
-            if talker == "P":
-                kind = "P" + kind
-            if kind not in HANDLERS:
-                self.ignored += 1
-                continue
-            add(talker, kind, fields, stamp_ns, out)
+        framer = self.framer
+        if type(framer).feed is NmeaFramer.feed:
+            routes = self._routes
+            for address, _, rest in framer.feed_raw(data):
+                route = routes.get(address)
+                if route is None:
+                    if len(routes) >= _ADDRESS_CACHE:
+                        routes.clear()
+                    route = routes[address] = self._route(*_address(address))
+                route(rest, stamp_ns, out)
+        else:
+            for talker, kind, fields in framer.feed(data):
+                self._route(talker, kind)(",".join(fields), stamp_ns, out)
         self.stats.malformed += session.malformed - before
         return out
 

@@ -132,10 +132,7 @@ class EpochCombiner:
         st = self.session
         mask, new = st.parse(talker, kind, fields)
         if mask & CLEAR_IS:
-            self._close(out)
-            self._ender = self._last_timed
-            self._last_timed = None
-            self._reported = False
+            self.new_epoch(out)
         worthy = mask & _FIX_BITS
         if worthy:
             self._pending = True
@@ -147,9 +144,20 @@ class EpochCombiner:
         if kind != "GSV" and kind != "GSA":
             self._talker = talker
         if kind in _TIMED and (st.latch_frac or (kind == "ZDA" and "time_ns" in new)):
-            self._last_timed = kind
-            if kind == self._ender and not self._reported:
-                self._report(out)
+            self.timed(kind, out)
+
+    def new_epoch(self, out: list) -> None:
+        """A sentence starts a new cycle: the last epoch ends (before its data is merged)."""
+        self._close(out)
+        self._ender = self._last_timed
+        self._last_timed = None
+        self._reported = False
+
+    def timed(self, kind: str, out: list) -> None:
+        """A sentence of type ``kind`` gave this epoch's time: the fix if it ends the cycle."""
+        self._last_timed = kind
+        if kind == self._ender and not self._reported:
+            self._report(out)
 
     def flush(self) -> list:
         """The pending epoch's fix and sky (end of a stream), if not reported yet."""

@@ -219,10 +219,7 @@ class Session:
         fix = self.fix
         changed = False
         if mask & CLEAR_IS:
-            if not mask & DOP_SET:
-                sky.dop.clear()
-            fix = self.fix = Fix()
-            self.quality = self.gga_sats = None
+            fix = self.new_cycle(mask & DOP_SET)
             changed = True
         elif mask & TIME_SET and not new.get("time_ns") and self.lastfix is fix:
             self.lastfix = fix.copy()  # this sentence leaves the fix without a time
@@ -237,12 +234,23 @@ class Session:
             changed = True
         if mask & SATELLITE_SET and sky.view:
             sky.fill_dop()
-        dop = sky.dop
         # (of the estimates a sentence may give, only GBS and PGRME give epx/epy)
-        if changed or dop != self._dops or self._unnormed or "epx" in new or "epy" in new:
-            self._dops = dict(dop)
-            error_model(self, new)
-            self._unnormed = _unnormed(self.fix)
+        if changed or sky.dop != self._dops or self._unnormed or "epx" in new or "epy" in new:
+            self.model(new)
+
+    def new_cycle(self, keep_dops: int) -> Fix:
+        """gpsd's CLEAR_IS: a new fix (the DOPs cleared unless the sentence gave some)."""
+        if not keep_dops:
+            self.sky.dop.clear()
+        fix = self.fix = Fix()
+        self.quality = self.gga_sats = None
+        return fix
+
+    def model(self, new: dict) -> None:
+        """The error model on the merged fix (``new``: what the sentence gave)."""
+        self._dops = dict(self.sky.dop)
+        error_model(self, new)
+        self._unnormed = _unnormed(self.fix)
 
     def _had_altitude(self) -> bool:
         last, old = self.lastfix, self.oldfix

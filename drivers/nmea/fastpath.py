@@ -1,0 +1,418 @@
+"""The usual sentences of a receiver with a fix, each read and merged in one step.
+
+:meth:`EpochCombiner.add_into` is the reference: it runs a sentence through
+:meth:`Session.parse` (the handler fills a dict of new data, gpsd's ``newdata``) and
+:meth:`Session.apply` (:func:`~drivers.nmea.fixstate.merge` copies it into the fix), with
+the epoch bookkeeping around them. For the common case of the common types (GGA, RMC,
+GSA, VTG, GST, ZDA) the functions here do the same in one pass: they read the fields into
+locals and write the fix directly, comparing each value with the fix's as ``merge`` does,
+so the error model runs exactly when it would. Each function first checks that the
+sentence is the ordinary case it covers (every field it needs present and well formed, no
+GGA repeating its time, ...) and, before changing any state, returns False when it is
+not: the sentence then takes the reference path. What is read and how is shared with the
+reference (:mod:`drivers.nmea.fields`, the session's and the combiner's methods, the
+error model); tests/test_nmea_fastpath.py checks both paths give the same messages, stats
+and session state on gpsd's logs, damaged copies of them and synthetic streams.
+
+Signature: ``f(combiner, talker, rest, stamp_ns, out) -> handled``, ``rest`` the text of
+the fields after the address (between the first comma and the ``*``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from drivers.nmea.fields import atoi, ddmmyy, faa_status, fnum, hhmmss_ns, latlon
+from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
+from drivers.nmea.handlers import _GGA_STATUS, KNOTS_TO_MPS
+from drivers.nmea.session import DAY_NS, ROLLOVER_S, days_from_civil
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from drivers.nmea.epoch import EpochCombiner
+
+HOUR_NS = 3_600_000_000_000
+_FIX_BITS_GSA = MODE_SET  # of what a GSA may set, the bits that make an epoch worth a fix
+_NONE: dict = {}  # the new data the error model sees: none of the estimates it keeps
+# GGA quality field -> (quality, gpsd status)
+_QUALITY = {str(q): (q, s) for q, s in _GGA_STATUS.items()}
+_CACHE_MAX = 64
+_TIMES: dict[str, tuple[int | None, float | None]] = {}
+_DATES: dict[str, tuple[int, int, int] | None] = {}
+# a GSA's text -> its fields: the same tuple for a repeated GSA, whose reading the sky
+# keeps (sky._gsa_fields: its key then hashes and compares strings it has seen)
+_GSA_SPLIT: dict[str, tuple[str, ...]] = {}
+
+
+def _time(s: str) -> tuple[int | None, float | None]:
+    """(time of day in ns, the field as a number): what the cycle detector registers."""
+    t = _TIMES.get(s)
+    if t is None:
+        if len(_TIMES) >= _CACHE_MAX:
+            _TIMES.clear()
+        t = _TIMES[s] = (hhmmss_ns(s), fnum(s))
+    return t
+
+
+def _date(s: str) -> tuple[int, int, int] | None:
+    d = _DATES.get(s, 0)
+    if d == 0:
+        if len(_DATES) >= _CACHE_MAX:
+            _DATES.clear()
+        d = _DATES[s] = ddmmyy(s)
+    return d  # type: ignore[return-value]
+
+
+def reference(
+    comb: EpochCombiner, talker: str, kind: str, rest: str, stamp: int, out: list
+) -> None:
+    """A sentence (its type ``kind``, its fields' text ``rest``) the reference way."""
+    comb.add_into(talker, kind, tuple(rest.split(",")), stamp, out)
+
+
+def _cleared(last: float | None, this: float | None) -> bool:
+    """Whether a registered time starts a new cycle (Session.parse's CLEAR_IS test)."""
+    return this is None or last is None or abs(this - last) > 0.01
+
+
+def gga(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
+    f = rest.split(",")
+    if len(f) < 14:
+        return reference(comb, talker, "GGA", rest, stamp, out)
+    st = comb.session
+    f0, f6 = f[0], f[6]
+    q = _QUALITY.get(f[5])
+    if q is None or not f0 or not f6.isdigit():
+        return reference(comb, talker, "GGA", rest, stamp, out)
+    this_talker = talker[1:2]
+    last_talker = st.last_gga_talker
+    if f0 == st.last_gga_time and (not last_talker or last_talker == this_talker):
+        return reference(comb, talker, "GGA", rest, stamp, out)  # latched: no fix
+    ns, frac = _time(f0)
+    if ns is None:
+        return reference(comb, talker, "GGA", rest, stamp, out)
+    pos = latlon(f[1], f[2], f[3], f[4])
+    if pos is None:
+        return reference(comb, talker, "GGA", rest, stamp, out)
+    # --- the ordinary GGA from here on (Session.parse, handlers.gga)
+    quality, status = q
+    sats = int(f6)
+    st.last_gga_talker = this_talker
+    st.latch_mode = False
+    st.last_gga_time = f0
+    tod = st.tod_ns
+    if tod is not None and ns // HOUR_NS < tod // HOUR_NS:
+        st.day += 1
+    st.tod_ns = ns
+    last = st.last_frac = st.this_frac
+    st.this_frac = frac
+    st.latch_frac = True
+    st.gsx_more = False
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    lat, lon = pos
+    mode = 2
+    f8 = f[8]
+    alt = fnum(f8) if f8 else None
+    if f8 and sats >= 4:
+        mode = MODE_3D
+    sep = fnum(f[10]) if f[10] else None
+    if sats < 3:
+        mode = MODE_NO_FIX
+    hdop = fnum(f[7])
+    if hdop is not None and not hdop < 99.0:
+        hdop = None
+    age = station = None
+    if f[12] and f[13]:
+        age, station = fnum(f[12]), atoi(f[13])
+        if age is None or not (age > 0.09 or station > 0):
+            age = None
+    fix = st.fix
+    if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
+        mode = MODE_3D
+    clear = _cleared(last, frac)
+    # --- EpochCombiner.add_into and Session.apply
+    if clear:
+        comb.new_epoch(out)
+    comb._pending = True
+    comb._snap = None
+    if clear:
+        fix = st.new_cycle(hdop is not None)
+        changed = True
+    else:
+        changed = False
+    if st.date is not None:
+        time_ns = st.day * DAY_NS + ns
+        if not clear and not time_ns and st.lastfix is fix:
+            st.lastfix = fix.copy()
+        if fix.time_ns != time_ns:
+            fix.time_ns = time_ns
+            changed = True
+    if hdop is not None:
+        sky.dop["hdop"] = hdop
+    st.quality, st.gga_sats = quality, sats
+    if sky.used_count != sats:
+        sky.used_count = sats
+        sky.changed = True
+    if fix.lat != lat:
+        fix.lat = lat
+        changed = True
+    if fix.lon != lon:
+        fix.lon = lon
+        changed = True
+    if sep is not None and fix.geoid_sep != sep:
+        fix.geoid_sep = sep
+        changed = True
+    if alt is not None and fix.alt_msl != alt:
+        fix.alt_msl = alt
+        changed = True
+    if fix.mode != mode:
+        fix.mode = mode
+        changed = True
+    if fix.status < status:
+        fix.status = status
+        changed = True
+    if age is not None and (fix.dgps_age, fix.dgps_station) != (age, station):
+        fix.dgps_age, fix.dgps_station = age, station
+        changed = True
+    if changed or sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+    comb.timed("GGA", out)
+
+
+def rmc(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
+    f = rest.split(",")
+    n = len(f)
+    if n < 11:
+        return reference(comb, talker, "RMC", rest, stamp, out)
+    status = f[1]
+    f0, f8 = f[0], f[8]
+    if (status != "A" and status != "D") or not f0 or not f8:
+        return reference(comb, talker, "RMC", rest, stamp, out)
+    st = comb.session
+    ns, frac = _time(f0)
+    date = _date(f8)
+    if ns is None or date is None:
+        return reference(comb, talker, "RMC", rest, stamp, out)
+    pos = latlon(f[2], f[3], f[4], f[5])
+    last_mode = st.lastfix.mode
+    if pos is None or last_mode > MODE_3D:  # (a GSA may give any number as the mode)
+        return reference(comb, talker, "RMC", rest, stamp, out)
+    # --- the ordinary RMC from here on (Session.parse, handlers.rmc)
+    st.latch_frac = st.gsx_more = False
+    tod = st.tod_ns
+    if tod is not None and ns // HOUR_NS < tod // HOUR_NS:
+        st.day += 1
+    st.tod_ns = ns
+    st.date = date
+    day = days_from_civil(*date)
+    if st.rollover_before_year is not None and date[0] < st.rollover_before_year:
+        day += ROLLOVER_S // 86400
+    st.day = day
+    last = st.last_frac = st.this_frac
+    st.this_frac = frac
+    st.latch_frac = True
+    lat, lon = pos
+    mode = MODE_3D if last_mode == MODE_3D else 2
+    speed_set = bool(f[6])
+    if speed_set:
+        speed = fnum(f[6])
+        if speed is not None:
+            speed *= KNOTS_TO_MPS
+    track_set = bool(f[7])
+    track = fnum(f[7]) if track_set else None
+    magvar = None
+    if f[9] and f[10]:
+        var = fnum(f[9])
+        hemi = f[10][0]
+        if var is not None and hemi in "EW" and abs(var) > 0.09:
+            magvar = -var if hemi == "W" else var
+    newstatus = faa_status(f[11] if n > 11 else "")
+    fix = st.fix
+    if st.sky.used_count > 3 or fix.alt_hae is not None or fix.alt_msl is not None:
+        mode = MODE_3D
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    time_ns = day * DAY_NS + ns
+    if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
+        mode = MODE_3D
+    clear = _cleared(last, frac)
+    # --- EpochCombiner.add_into and Session.apply
+    if clear:
+        comb.new_epoch(out)
+    comb._pending = True
+    comb._snap = None
+    if clear:
+        fix = st.new_cycle(0)
+        changed = True
+    else:
+        changed = False
+        if not time_ns and st.lastfix is fix:
+            st.lastfix = fix.copy()
+    if fix.time_ns != time_ns:
+        fix.time_ns = time_ns
+        changed = True
+    if fix.lat != lat:
+        fix.lat = lat
+        changed = True
+    if fix.lon != lon:
+        fix.lon = lon
+        changed = True
+    if speed_set and fix.speed != speed:
+        fix.speed = speed
+        changed = True
+    if track_set and fix.track != track:
+        fix.track = track
+        changed = True
+    if magvar is not None and fix.magvar != magvar:
+        fix.magvar = magvar
+        changed = True
+    if fix.mode != mode:
+        fix.mode = mode
+        changed = True
+    if fix.status < newstatus:
+        fix.status = newstatus
+        changed = True
+    if changed or sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+    comb.timed("RMC", out)
+
+
+def gsa(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
+    f = _GSA_SPLIT.get(rest)
+    if f is None:
+        if len(_GSA_SPLIT) >= _CACHE_MAX:
+            _GSA_SPLIT.clear()
+        f = _GSA_SPLIT[rest] = tuple(rest.split(","))
+    if len(f) < 17:
+        return reference(comb, talker, "GSA", rest, stamp, out)
+    st = comb.session
+    st.latch_frac = st.gsx_more = False
+    sky = st.sky
+    new: dict = {}
+    mask = sky.gsa(talker, f, new, st.latch_mode)
+    sky.last_gsv_talker = ""
+    fix = st.fix
+    if (mask & MODE_SET and fix.mode == MODE_3D and new.get("mode", 0) != MODE_NO_FIX
+            and st._had_altitude()):  # fmt: skip
+        new["mode"] = MODE_3D
+    if mask & _FIX_BITS_GSA:
+        comb._pending = True
+        comb._snap = None
+    elif comb._pending and comb._snap is None and new:
+        comb._snap = fix.copy()
+    changed = False
+    if mask & MODE_SET:
+        mode = new.get("mode", 0)
+        if fix.mode != mode:
+            fix.mode = mode
+            changed = True
+    if changed or sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+
+
+def vtg(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
+    f = rest.split(",")
+    if len(f) < 9:
+        return reference(comb, talker, "VTG", rest, stamp, out)
+    f0, f4 = f[0], f[4]
+    if not f0 or not f4 or f[8][:1] in ("E", "N"):
+        return reference(comb, talker, "VTG", rest, stamp, out)
+    st = comb.session
+    st.latch_frac = st.gsx_more = False
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    track = fnum(f0)
+    magtrack = fnum(f[2]) if f[2] else None
+    speed = fnum(f4)
+    if speed is not None:
+        speed *= KNOTS_TO_MPS
+    comb._pending = True
+    comb._snap = None
+    fix = st.fix
+    changed = False
+    if fix.track != track:
+        fix.track = track
+        changed = True
+    if magtrack is not None and fix.magtrack != magtrack:
+        fix.magtrack = magtrack
+        changed = True
+    if fix.speed != speed:
+        fix.speed = speed
+        changed = True
+    if changed or sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+
+
+def gst(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
+    f = rest.split(",")
+    if len(f) < 8:
+        return reference(comb, talker, "GST", rest, stamp, out)
+    st = comb.session
+    st.latch_frac = st.gsx_more = False
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    st.gst = tuple(map(fnum, f[1:8]))
+    st.gst_tod = _time(f[0])[0]
+    if sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+
+
+def zda(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
+    f = rest.split(",")
+    if len(f) < 4:
+        return reference(comb, talker, "ZDA", rest, stamp, out)
+    f0, f1, f2, f3 = f[0], f[1], f[2], f[3]
+    if not (f1.isdigit() and f2.isdigit() and f3.isdigit() and len(f3) == 4):
+        return reference(comb, talker, "ZDA", rest, stamp, out)
+    y, m, dd = int(f3), int(f2), int(f1)
+    if not (1900 <= y <= 2200 and 1 <= m <= 12 and 1 <= dd <= 31):
+        return reference(comb, talker, "ZDA", rest, stamp, out)
+    ns = _time(f0)[0] if f0 else None
+    if ns is None:
+        return reference(comb, talker, "ZDA", rest, stamp, out)
+    # --- the ordinary ZDA from here on (Session.parse, handlers.zda)
+    st = comb.session
+    st.latch_frac = st.gsx_more = False
+    tod = st.tod_ns
+    if tod is not None and ns // HOUR_NS < tod // HOUR_NS:
+        st.day += 1
+    st.tod_ns = ns
+    st.set_date((y, m, dd))
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    time_ns = st.day * DAY_NS + ns
+    comb._pending = True
+    comb._snap = None
+    fix = st.fix
+    changed = False
+    if not time_ns and st.lastfix is fix:
+        st.lastfix = fix.copy()
+    if fix.time_ns != time_ns:
+        fix.time_ns = time_ns
+        changed = True
+    if changed or sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+    comb.timed("ZDA", out)
+
+
+FAST: dict[str, Callable[..., None]] = {
+    "GGA": gga,
+    "RMC": rmc,
+    "GSA": gsa,
+    "VTG": vtg,
+    "GST": gst,
+    "ZDA": zda,
+}
