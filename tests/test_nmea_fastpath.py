@@ -19,6 +19,7 @@ import pytest
 
 from drivers.nmea import NmeaCodec, build
 from drivers.nmea import session as session_module
+from drivers.nmea.fixstate import FIELDS
 from drivers.nmea.writer import epoch_sentences
 from msgs import GpsFix
 from tests.nmea_stream import NASTY
@@ -33,12 +34,12 @@ def _state(codec: NmeaCodec) -> tuple:
     comb = codec.combiner
     st = comb.session
     plain = {k: v for k, v in vars(st).items() if k not in ("fix", "lastfix", "oldfix", "sky")}
-    fixes = [sorted(vars(f).items()) for f in (st.fix, st.lastfix, st.oldfix)]
+    fixes = [[getattr(f, k) for k in FIELDS] for f in (st.fix, st.lastfix, st.oldfix)]
     same = (st.lastfix is st.fix, st.oldfix is st.lastfix, st.oldfix is st.fix)
     sky = {k: v for k, v in vars(st.sky).items() if k != "view"}
     view = [tuple(getattr(s, a) for a in s.__slots__) for s in st.sky.view]
     epoch = {k: v for k, v in vars(comb).items() if k not in ("session", "_snap")}
-    snap = None if comb._snap is None else sorted(vars(comb._snap).items())
+    snap = None if comb._snap is None else [getattr(comb._snap, k) for k in FIELDS]
     return (
         sorted(plain.items()), fixes, same, sorted(sky.items()), view,
         sorted(epoch.items(), key=lambda kv: kv[0]), snap, codec.stats, codec.ignored,

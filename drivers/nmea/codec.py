@@ -80,7 +80,8 @@ def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
     """Every line of a run of complete ASCII lines, checked at once with numpy: (starts,
     ends without a CR, verdicts). A GOOD line is ``$...*HH`` of printable bytes, one
     ``$``, no longer than ``max_line``, the XOR of the bytes between ``$`` and ``*`` equal
-    to HH; BAD_SUM fails only the XOR; OTHER is anything else (the per-line path)."""
+    to HH; BAD_SUM fails only the XOR; OTHER is anything else (the per-line path). The
+    address (up to the first comma) is checked by the caller."""
     a = np.frombuffer(region, dtype=np.uint8)
     nl = np.flatnonzero(a == 10)
     starts = np.concatenate(([0], nl + 1))
@@ -112,10 +113,23 @@ def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
     return starts.tolist(), ends.tolist(), verdict.tolist()
 
 
+# A route takes one sentence's fields text to what reads it: route(rest, stamp_ns, out).
+Route = Callable[[str, int, list], None]
+
+
+def _collect(address: str, rest: str, stamp_ns: int, out: list) -> None:
+    out.append((address, ",", rest))
+
+
+def _collector(talker: str, kind: str) -> Route:
+    """The route of :meth:`NmeaFramer.feed_raw`: (address, ",", fields) appended to out."""
+    return partial(_collect, talker + kind)  # (the address again)
+
+
 class NmeaFramer:
     """Bytes -> checked sentences (any talker, any type): :meth:`feed` gives
     :class:`Sentence` objects, :meth:`feed_raw` each sentence's address and the text of
-    its fields (what the codec reads)."""
+    its fields, :meth:`feed_routed` gives that text to a reader chosen by the address."""
 
     def __init__(self, require_checksum: bool = True, max_line: int = 128) -> None:
         self.require_checksum = require_checksum
@@ -125,6 +139,7 @@ class NmeaFramer:
         self.noisy = 0
         self.no_checksum = 0
         self._buf = bytearray()
+        self._collectors: dict[str, Route | bool] = {}
 
     def feed(self, data: bytes) -> list[Sentence]:
         return [
@@ -136,14 +151,40 @@ class NmeaFramer:
         """The checked sentences completed by ``data``, each as ``(address, ",", fields)``
         (``"GPGGA"``, the text between the first comma and the ``*``; what
         ``str.partition`` gives)."""
+        out: list[tuple[str, str, str]] = []
+        self.feed_routed(data, self._collectors, _collector, 0, out)
+        return out
+
+    def feed_routed(
+        self,
+        data: bytes,
+        routes: dict[str, Route | bool],
+        new_route: Callable[[str, str], Route],
+        stamp_ns: int,
+        out: list,
+    ) -> None:
+        """Each checked sentence completed by ``data``, in order, to
+        ``routes[address](rest, stamp_ns, out)``; an address not in ``routes`` yet gets
+        ``new_route(talker, type)`` (False there marks an address that is none)."""
         buf = self._buf
         buf += data
-        out: list[tuple[str, str, str]] = []
         end = buf.rfind(b"\n")
         if end >= 0:
             region = bytes(buf[:end])
             del buf[: end + 1]
-            self._lines(region, out)
+            if region.isascii():
+                if len(region) >= _NUMPY_FROM:
+                    verdicts = _classify(region, self.max_line)
+                else:
+                    verdicts = self._classify_small(region)
+                self._route(region, *verdicts, routes, new_route, stamp_ns, out)
+            else:
+                for line in region.split(b"\n"):
+                    parts = self._line(line)
+                    if parts is not None:
+                        address = parts[0]
+                        route = routes.get(address) or _routed(address, routes, new_route)
+                        route(parts[2], stamp_ns, out)  # type: ignore[operator]
         # A pending CR is the end of the line, not part of it: it does not count.
         limit = self.max_line + (buf[-1:] == b"\r")
         if len(buf) > limit:
@@ -156,32 +197,22 @@ class NmeaFramer:
             self.stats.bytes_skipped += cut
             self.stats.resyncs += 1
             del buf[:cut]
-        return out
 
-    def _lines(self, region: bytes, out: list) -> None:
-        """Every line of a run of complete lines. The usual line (``$...*HH``, printable
-        ASCII, short enough, right checksum) is checked for the whole run at once, with
-        numpy from ``_NUMPY_FROM`` bytes on (:func:`_classify`), else with one prefix XOR
-        (a line's checksum is two look-ups); any other line goes to :meth:`_line`."""
-        if not region.isascii():
-            for line in region.split(b"\n"):
-                self._line(line, out)
-            return
-        if len(region) >= _NUMPY_FROM:
-            self._checked(region, *_classify(region, self.max_line), out)
-            return
+    def _classify_small(self, region: bytes) -> tuple[list[int], ...]:
+        """:func:`_classify` without numpy (a short run): one prefix XOR of the run, a
+        line's checksum is two look-ups."""
         text = region.decode("ascii")
         prefix = _prefix_xor(region)
         max_line = self.max_line
-        stats = self.stats
+        starts, ends, verdicts = [], [], []
         pos = 0
-        append = out.append
         for line in text.split("\n"):
-            n = len(line)
-            start, at = pos, pos
-            pos += n + 1
+            start = pos
+            pos += len(line) + 1
             if line[-1:] == "\r":
                 line = line[:-1]
+            starts.append(start)
+            ends.append(start + len(line))
             star = len(line) - 3
             if (
                 line[:1] != "$"
@@ -192,51 +223,60 @@ class NmeaFramer:
                 or not line.isprintable()
                 or line[star + 1 :] not in _HEX2
             ):
-                self._line(region[start : start + n], out)
-                continue
-            c = prefix[at + star - 1] ^ prefix[at]  # XOR of the bytes between '$' and '*'
-            if c != _HEX2[line[star + 1 :]]:
-                stats.bad_checksums += 1
-                stats.bytes_skipped += len(line)
-                continue
-            parts = line[1:star].partition(",")
-            if not (_ADDRESSES.get(parts[0]) or _address(parts[0])):
-                stats.bytes_skipped += len(line)
-                continue
-            stats.frames_ok += 1
-            append(parts)
+                verdicts.append(OTHER)
+            elif prefix[start + star - 1] ^ prefix[start] != _HEX2[line[star + 1 :]]:
+                verdicts.append(BAD_SUM)  # the XOR of the bytes between '$' and '*'
+            else:
+                verdicts.append(GOOD)
+        return starts, ends, verdicts
 
-    def _checked(self, region: bytes, starts: list, ends: list, verdicts: list, out: list) -> None:
-        """The lines of :func:`_classify`'s verdicts: sentences, counts, or :meth:`_line`."""
+    def _route(
+        self,
+        region: bytes,
+        starts: list,
+        ends: list,
+        verdicts: list,
+        routes: dict,
+        new_route: Callable,
+        stamp_ns: int,
+        out: list,
+    ) -> None:
+        """The lines of a run by their verdicts: sentences to their routes, counts, or
+        :meth:`_line`."""
         text = region.decode("ascii")
         stats = self.stats
-        append = out.append
-        skipped = ok = 0
-        addresses = _ADDRESSES
+        skipped = bad = 0
         for s, e, verdict in zip(starts, ends, verdicts, strict=True):
             if verdict == GOOD:
-                parts = text[s + 1 : e - 3].partition(",")
-                if addresses.get(parts[0]) or _address(parts[0]):
-                    append(parts)
-                    ok += 1
+                address, _, rest = text[s + 1 : e - 3].partition(",")
+                route = routes.get(address)
+                if route is None:
+                    route = _routed(address, routes, new_route)
+                if route:
+                    route(rest, stamp_ns, out)
                 else:
                     skipped += e - s
+                    bad += 1
             elif verdict == OTHER:
                 end = region.find(b"\n", s)
-                self._line(region[s : len(region) if end < 0 else end], out)
+                parts = self._line(region[s : len(region) if end < 0 else end])
+                if parts is not None:
+                    route = routes.get(parts[0]) or _routed(parts[0], routes, new_route)
+                    route(parts[2], stamp_ns, out)
             else:
                 skipped += e - s
                 stats.bad_checksums += 1
-        stats.frames_ok += ok
+        stats.frames_ok += verdicts.count(GOOD) - bad
         stats.bytes_skipped += skipped
 
-    def _line(self, line: bytes, out: list) -> None:
+    def _line(self, line: bytes) -> tuple[str, str, str] | None:
+        """Any line: (address, ",", fields) of a sentence in it, or None (counted)."""
         start = line.rfind(b"$")
         if start < 0:
             if line.strip(b"\r"):
                 self.stats.bytes_skipped += len(line) + 1
                 self.stats.resyncs += 1
-            return
+            return None
         if start:
             self.stats.bytes_skipped += start
             self.stats.resyncs += 1
@@ -244,17 +284,17 @@ class NmeaFramer:
         if len(line) > self.max_line:
             self.overlong += 1
             self.stats.bytes_skipped += len(line)
-            return
+            return None
         try:
             text = line.decode("ascii")
         except UnicodeDecodeError:
             self.noisy += 1
             self.stats.bytes_skipped += len(line)
-            return
+            return None
         if not text.isprintable():
             self.noisy += 1
             self.stats.bytes_skipped += len(line)
-            return
+            return None
         star = text.rfind("*")
         if star >= 0 and len(text) - star == 3 and _HEX.issuperset(line[star + 1 :]):
             body = text[1:star]
@@ -264,19 +304,29 @@ class NmeaFramer:
             if c != int(text[star + 1 :], 16):
                 self.stats.bad_checksums += 1
                 self.stats.bytes_skipped += len(line)
-                return
+                return None
         elif self.require_checksum:
             self.no_checksum += 1
             self.stats.bytes_skipped += len(line)
-            return
+            return None
         else:
             body = text[1:]
         parts = body.partition(",")
         if not _address(parts[0]):
             self.stats.bytes_skipped += len(line)
-            return
+            return None
         self.stats.frames_ok += 1
-        out.append(parts)
+        return parts
+
+
+def _routed(address: str, routes: dict, new_route: Callable) -> Route | bool:
+    """The route of an address not looked up yet (False: not an address), kept."""
+    tk = _address(address)
+    route = new_route(*tk) if tk else False
+    if len(routes) >= _ADDRESS_CACHE:
+        routes.clear()
+    routes[address] = route
+    return route
 
 
 class NmeaCodec:
@@ -302,14 +352,14 @@ class NmeaCodec:
         self.stats = self.framer.stats
         self.ignored = 0  # well-formed sentences of types not decoded (TXT, ...)
         self._fast = FAST if fast else {}
-        self._routes: dict[str, Callable[[str, int, list], None]] = {}  # address -> reader
+        self._routes: dict[str, Route | bool] = {}  # address -> reader
 
     @property
     def malformed(self) -> int:
         """Sentences of decoded types whose fields do not parse (``stats.malformed``)."""
         return self.stats.malformed
 
-    def _route(self, talker: str, kind: str) -> Callable[[str, int, list], None]:
+    def _route(self, talker: str, kind: str) -> Route:
         """What reads a sentence of this talker and type: ``route(rest, stamp_ns, out)``."""
         if talker == "P":
             kind = "P" + kind
@@ -328,14 +378,7 @@ class NmeaCodec:
         before = session.malformed
         framer = self.framer
         if type(framer).feed is NmeaFramer.feed:
-            routes = self._routes
-            for address, _, rest in framer.feed_raw(data):
-                route = routes.get(address)
-                if route is None:
-                    if len(routes) >= _ADDRESS_CACHE:
-                        routes.clear()
-                    route = routes[address] = self._route(*_address(address))
-                route(rest, stamp_ns, out)
+            framer.feed_routed(data, self._routes, self._route, stamp_ns, out)
         else:
             for talker, kind, fields in framer.feed(data):
                 self._route(talker, kind)(",".join(fields), stamp_ns, out)

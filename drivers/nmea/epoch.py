@@ -34,6 +34,7 @@ from drivers.nmea.fixstate import (
     ALTITUDE_SET,
     CLEAR_IS,
     CLIMB_SET,
+    DEFERRED,
     LATLON_SET,
     MAGNETIC_TRACK_SET,
     MODE_2D,
@@ -87,9 +88,15 @@ def iso_time(ns: int | None) -> str:
             _DAYS.clear()
     s, milli = divmod(ms_of_day, 1000)
     m, s = divmod(s, 60)
-    h, m = divmod(m, 60)
-    _LAST[:] = [ns, f"{date}{h:02d}:{m:02d}:{s:02d}.{milli:03d}Z"]
-    return _LAST[1]
+    text = _LAST[1] = date + _HHMM[m] + _SS[s] + _MMM[milli]
+    _LAST[0] = ns
+    return text
+
+
+# the pieces of a time of day: "hh:mm:" of each minute, "ss." of each second, "mmmZ"
+_HHMM = tuple(f"{m // 60:02d}:{m % 60:02d}:" for m in range(1440))
+_SS = tuple(f"{s:02d}." for s in range(61))
+_MMM = tuple(f"{ms:03d}Z" for ms in range(1000))
 
 
 # What a fix without a 2D (3D) fix, or a GST of another second, shows: nothing.
@@ -223,7 +230,10 @@ class EpochCombiner:
                 if self.datum is None:
                     self.datum = Datum(lat, lon)
                 east, north = self.datum.to_local(lat, lon)
-            fix2d = (lat, lon, f.alt_msl, f.speed_now(), f.track, f.alt_hae, f.eph, f.epv, f.epx,
+            speed = f.speed
+            if speed is DEFERRED:
+                speed = f.speed_now()
+            fix2d = (lat, lon, f.alt_msl, speed, f.track, f.alt_hae, f.eph, f.epv, f.epx,
                      f.epy, f.sep, f.eps, f.epd, f.magvar, f.magtrack, f.dgps_age,
                      f.dgps_station)  # fmt: skip
         else:

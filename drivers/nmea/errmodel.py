@@ -102,8 +102,24 @@ def _velocities(fix) -> None:
             fix.track = math.degrees(math.atan2(fix.vel_e, fix.vel_n))
 
 
-def _derived(fix) -> None:
-    """Velocities, track, altitudes: what follows from the fix's own fields."""
+def error_model(st: Session, new: dict) -> None:
+    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave)."""
+    fix = st.fix
+    t = fix.time_ns
+    if t:
+        last = st.lastfix
+        dt = (t - (last.time_ns or 0)) * 1e-9
+        if dt > 0.0099 or dt < -0.0099:
+            st.oldfix = last  # time moved on: the last fix is now the previous one
+        else:
+            dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
+    else:
+        dt = -1.0
+    old = st.oldfix
+    lat, lon = fix.lat, fix.lon
+    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        fix.lat = fix.lon = None
+    # what follows from the fix's own fields: velocities, track, altitudes
     v = fix.speed
     if v is not None and abs(v) > _MAX_RATE:  # (False for a deferred speed)
         fix.speed = None
@@ -130,26 +146,7 @@ def _derived(fix) -> None:
                 fix.alt_msl = fix.alt_hae - sep
         elif fix.alt_hae is None:
             fix.alt_hae = fix.alt_msl + sep
-
-
-def error_model(st: Session, new: dict) -> None:
-    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave)."""
-    fix = st.fix
-    t = fix.time_ns
-    if t:
-        last = st.lastfix
-        dt = (t - (last.time_ns or 0)) * 1e-9
-        if dt > 0.0099 or dt < -0.0099:
-            st.oldfix = last  # time moved on: the last fix is now the previous one
-        else:
-            dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
-    else:
-        dt = -1.0
-    old = st.oldfix
-    lat, lon = fix.lat, fix.lon
-    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-        fix.lat = fix.lon = None
-    _derived(fix)
+    # what follows from the previous epoch's fix: speed, climb
     mode = fix.mode
     moved = dt > 0 and mode >= MODE_2D and old.mode >= MODE_2D
     if moved:
@@ -168,9 +165,11 @@ def error_model(st: Session, new: dict) -> None:
 
 
 def _estimates(st, fix, new: dict, dt: float, moved: bool) -> None:
-    h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
+    """The 95 % estimates: from the DOPs (kept once the fix has them), then from the
+    previous epoch's fix (speed, track and climb errors)."""
     dop = st.sky.dop
     if dop:
+        h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
         get = dop.get
         if "epx" not in new and (xdop := get("xdop")) is not None:
             fix.epx = xdop * h_uere

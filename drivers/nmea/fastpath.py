@@ -22,10 +22,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from drivers.nmea.fields import atoi, ddmmyy, faa_status, fnum, hhmmss_ns, latlon
+from drivers.nmea.fields import _FAA, atoi, ddmmyy, fnum, hhmmss_ns, latlon, number
+from drivers.nmea.fields import NUMBERS as nums
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
 from drivers.nmea.handlers import _GGA_STATUS, KNOTS_TO_MPS
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, days_from_civil
+from drivers.nmea.sky import _gsa_fields
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -33,16 +35,17 @@ if TYPE_CHECKING:
     from drivers.nmea.epoch import EpochCombiner
 
 HOUR_NS = 3_600_000_000_000
-_FIX_BITS_GSA = MODE_SET  # of what a GSA may set, the bits that make an epoch worth a fix
 _NONE: dict = {}  # the new data the error model sees: none of the estimates it keeps
 # GGA quality field -> (quality, gpsd status)
 _QUALITY = {str(q): (q, s) for q, s in _GGA_STATUS.items()}
 _CACHE_MAX = 64
 _TIMES: dict[str, tuple[int | None, float | None]] = {}
-_DATES: dict[str, tuple[int, int, int] | None] = {}
-# a GSA's text -> its fields: the same tuple for a repeated GSA, whose reading the sky
-# keeps (sky._gsa_fields: its key then hashes and compares strings it has seen)
-_GSA_SPLIT: dict[str, tuple[str, ...]] = {}
+_DATES: dict[str, tuple] = {}
+# a GST's and a ZDA's fields after the time -> what they say (_gst_stats, _zda_date)
+_GST: dict[str, tuple] = {}
+_ZDA: dict[str, tuple] = {}
+# (talker, a GSA's fields text) -> what it says (sky._gsa_fields; () when too short)
+_GSA: dict[tuple[str, str], tuple] = {}
 
 
 def _time(s: str) -> tuple[int | None, float | None]:
@@ -55,13 +58,15 @@ def _time(s: str) -> tuple[int | None, float | None]:
     return t
 
 
-def _date(s: str) -> tuple[int, int, int] | None:
-    d = _DATES.get(s, 0)
-    if d == 0:
+def _date(s: str) -> tuple:
+    """((year, month, day), days since 1970) of an RMC date, () if it is none."""
+    d = _DATES.get(s)
+    if d is None:
         if len(_DATES) >= _CACHE_MAX:
             _DATES.clear()
-        d = _DATES[s] = ddmmyy(s)
-    return d  # type: ignore[return-value]
+        ymd = ddmmyy(s)
+        d = _DATES[s] = () if ymd is None else (ymd, days_from_civil(*ymd))
+    return d
 
 
 def reference(
@@ -69,11 +74,6 @@ def reference(
 ) -> None:
     """A sentence (its type ``kind``, its fields' text ``rest``) the reference way."""
     comb.add_into(talker, kind, tuple(rest.split(",")), stamp, out)
-
-
-def _cleared(last: float | None, this: float | None) -> bool:
-    """Whether a registered time starts a new cycle (Session.parse's CLEAR_IS test)."""
-    return this is None or last is None or abs(this - last) > 0.01
 
 
 def gga(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
@@ -114,13 +114,13 @@ def gga(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     lat, lon = pos
     mode = 2
     f8 = f[8]
-    alt = fnum(f8) if f8 else None
+    alt = (nums.get(f8) or number(f8)) if f8 else None
     if f8 and sats >= 4:
         mode = MODE_3D
-    sep = fnum(f[10]) if f[10] else None
+    sep = (nums.get(f[10]) or number(f[10])) if f[10] else None
     if sats < 3:
         mode = MODE_NO_FIX
-    hdop = fnum(f[7])
+    hdop = nums.get(f[7]) or number(f[7])
     if hdop is not None and not hdop < 99.0:
         hdop = None
     age = station = None
@@ -131,7 +131,7 @@ def gga(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     fix = st.fix
     if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
         mode = MODE_3D
-    clear = _cleared(last, frac)
+    clear = frac is None or last is None or abs(frac - last) > 0.01  # (Session.parse)
     # --- EpochCombiner.add_into and Session.apply
     if clear:
         comb.new_epoch(out)
@@ -180,7 +180,9 @@ def gga(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
         st.model(_NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
-    comb.timed("GGA", out)
+    comb._last_timed = "GGA"  # (EpochCombiner.timed)
+    if comb._ender == "GGA" and not comb._reported:
+        comb._report(out)
 
 
 def rmc(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
@@ -194,22 +196,19 @@ def rmc(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
         return reference(comb, talker, "RMC", rest, stamp, out)
     st = comb.session
     ns, frac = _time(f0)
-    date = _date(f8)
-    if ns is None or date is None:
+    date = _DATES.get(f8) or _date(f8)
+    if ns is None or not date:
         return reference(comb, talker, "RMC", rest, stamp, out)
     pos = latlon(f[2], f[3], f[4], f[5])
     last_mode = st.lastfix.mode
     if pos is None or last_mode > MODE_3D:  # (a GSA may give any number as the mode)
         return reference(comb, talker, "RMC", rest, stamp, out)
     # --- the ordinary RMC from here on (Session.parse, handlers.rmc)
-    st.latch_frac = st.gsx_more = False
-    tod = st.tod_ns
-    if tod is not None and ns // HOUR_NS < tod // HOUR_NS:
-        st.day += 1
-    st.tod_ns = ns
-    st.date = date
-    day = days_from_civil(*date)
-    if st.rollover_before_year is not None and date[0] < st.rollover_before_year:
+    st.gsx_more = False
+    st.tod_ns = ns  # (a midnight wrap of the day is overridden by the date just below)
+    ymd, day = date
+    st.date = ymd
+    if st.rollover_before_year is not None and ymd[0] < st.rollover_before_year:
         day += ROLLOVER_S // 86400
     st.day = day
     last = st.last_frac = st.this_frac
@@ -219,18 +218,18 @@ def rmc(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     mode = MODE_3D if last_mode == MODE_3D else 2
     speed_set = bool(f[6])
     if speed_set:
-        speed = fnum(f[6])
+        speed = nums.get(f[6]) or number(f[6])
         if speed is not None:
             speed *= KNOTS_TO_MPS
     track_set = bool(f[7])
-    track = fnum(f[7]) if track_set else None
+    track = (nums.get(f[7]) or number(f[7])) if track_set else None
     magvar = None
     if f[9] and f[10]:
         var = fnum(f[9])
         hemi = f[10][0]
         if var is not None and hemi in "EW" and abs(var) > 0.09:
             magvar = -var if hemi == "W" else var
-    newstatus = faa_status(f[11] if n > 11 else "")
+    newstatus = _FAA.get(f[11][:1], 1) if n > 11 else 0  # (fields.faa_status)
     fix = st.fix
     if st.sky.used_count > 3 or fix.alt_hae is not None or fix.alt_msl is not None:
         mode = MODE_3D
@@ -239,7 +238,7 @@ def rmc(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     time_ns = day * DAY_NS + ns
     if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
         mode = MODE_3D
-    clear = _cleared(last, frac)
+    clear = frac is None or last is None or abs(frac - last) > 0.01  # (Session.parse)
     # --- EpochCombiner.add_into and Session.apply
     if clear:
         comb.new_epoch(out)
@@ -280,38 +279,42 @@ def rmc(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
         st.model(_NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
-    comb.timed("RMC", out)
+    comb._last_timed = "RMC"  # (EpochCombiner.timed)
+    if comb._ender == "RMC" and not comb._reported:
+        comb._report(out)
 
 
 def gsa(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
-    f = _GSA_SPLIT.get(rest)
-    if f is None:
-        if len(_GSA_SPLIT) >= _CACHE_MAX:
-            _GSA_SPLIT.clear()
-        f = _GSA_SPLIT[rest] = tuple(rest.split(","))
-    if len(f) < 17:
-        return reference(comb, talker, "GSA", rest, stamp, out)
     st = comb.session
+    key = (talker, rest)
+    read = _GSA.get(key)
+    if read is None:
+        f = tuple(rest.split(","))
+        read = _gsa_fields(talker, f) if len(f) >= 17 else ()
+        if len(_GSA) >= _CACHE_MAX:
+            _GSA.clear()
+        _GSA[key] = read
+    if not read or st.latch_mode:
+        return reference(comb, talker, "GSA", rest, stamp, out)
+    # --- the ordinary GSA from here on (Session.parse, Sky.gsa)
     st.latch_frac = st.gsx_more = False
     sky = st.sky
     new: dict = {}
-    mask = sky.gsa(talker, f, new, st.latch_mode)
+    mask = sky.gsa_read(talker, read, new)
     sky.last_gsv_talker = ""
     fix = st.fix
-    if (mask & MODE_SET and fix.mode == MODE_3D and new.get("mode", 0) != MODE_NO_FIX
-            and st._had_altitude()):  # fmt: skip
-        new["mode"] = MODE_3D
-    if mask & _FIX_BITS_GSA:
+    changed = False
+    if mask & MODE_SET:  # (it is all of GSA's that makes an epoch worth a fix)
+        mode = new.get("mode", 0)
+        if mode != MODE_NO_FIX and mode != MODE_3D and fix.mode == MODE_3D and st._had_altitude():
+            mode = MODE_3D
         comb._pending = True
         comb._snap = None
-    elif comb._pending and comb._snap is None and new:
-        comb._snap = fix.copy()
-    changed = False
-    if mask & MODE_SET:
-        mode = new.get("mode", 0)
         if fix.mode != mode:
             fix.mode = mode
             changed = True
+    elif comb._pending and comb._snap is None and new:
+        comb._snap = fix.copy()
     if changed or sky.dop != st._dops or st._unnormed:
         st.model(_NONE)
     comb._stamp_ns = stamp
@@ -328,9 +331,9 @@ def vtg(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     st.latch_frac = st.gsx_more = False
     sky = st.sky
     sky.last_gsv_talker = sky.last_gsa_talker = ""
-    track = fnum(f0)
-    magtrack = fnum(f[2]) if f[2] else None
-    speed = fnum(f4)
+    track = nums.get(f0) or number(f0)
+    magtrack = (nums.get(f[2]) or number(f[2])) if f[2] else None
+    speed = nums.get(f4) or number(f4)
     if speed is not None:
         speed *= KNOTS_TO_MPS
     comb._pending = True
@@ -353,45 +356,54 @@ def vtg(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
 
 
 def gst(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
-    f = rest.split(",")
-    if len(f) < 8:
+    f0, _, tail = rest.partition(",")
+    stats = _GST.get(tail)
+    if stats is None:
+        stats = _gst_stats(tail)
+    if not stats:
         return reference(comb, talker, "GST", rest, stamp, out)
     st = comb.session
     st.latch_frac = st.gsx_more = False
     sky = st.sky
     sky.last_gsv_talker = sky.last_gsa_talker = ""
-    st.gst = tuple(map(fnum, f[1:8]))
-    st.gst_tod = _time(f[0])[0]
+    st.gst = stats
+    st.gst_tod = _time(f0)[0]
     if sky.dop != st._dops or st._unnormed:
         st.model(_NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
 
 
+def _gst_stats(tail: str) -> tuple:
+    """The 7 numbers of a GST after its time (handlers.gst), () if it has fewer."""
+    f = tail.split(",")
+    stats = tuple(map(number, f[:7])) if len(f) >= 7 else ()
+    if len(_GST) >= _CACHE_MAX:
+        _GST.clear()
+    _GST[tail] = stats
+    return stats
+
+
 def zda(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> None:
-    f = rest.split(",")
-    if len(f) < 4:
+    f0, _, tail = rest.partition(",")
+    date = _ZDA.get(tail)
+    if date is None:
+        date = _zda_date(tail)
+    ns = _time(f0)[0]
+    if not date or ns is None:
         return reference(comb, talker, "ZDA", rest, stamp, out)
-    f0, f1, f2, f3 = f[0], f[1], f[2], f[3]
-    if not (f1.isdigit() and f2.isdigit() and f3.isdigit() and len(f3) == 4):
-        return reference(comb, talker, "ZDA", rest, stamp, out)
-    y, m, dd = int(f3), int(f2), int(f1)
-    if not (1900 <= y <= 2200 and 1 <= m <= 12 and 1 <= dd <= 31):
-        return reference(comb, talker, "ZDA", rest, stamp, out)
-    ns = _time(f0)[0] if f0 else None
-    if ns is None:
-        return reference(comb, talker, "ZDA", rest, stamp, out)
-    # --- the ordinary ZDA from here on (Session.parse, handlers.zda)
+    # --- the ordinary ZDA from here on (Session.parse, handlers.zda, Session.set_date)
+    ymd, day = date
     st = comb.session
     st.latch_frac = st.gsx_more = False
-    tod = st.tod_ns
-    if tod is not None and ns // HOUR_NS < tod // HOUR_NS:
-        st.day += 1
-    st.tod_ns = ns
-    st.set_date((y, m, dd))
+    st.tod_ns = ns  # (a midnight wrap of the day is overridden by the date just below)
+    st.date = ymd
+    if st.rollover_before_year is not None and ymd[0] < st.rollover_before_year:
+        day += ROLLOVER_S // 86400
+    st.day = day
     sky = st.sky
     sky.last_gsv_talker = sky.last_gsa_talker = ""
-    time_ns = st.day * DAY_NS + ns
+    time_ns = day * DAY_NS + ns
     comb._pending = True
     comb._snap = None
     fix = st.fix
@@ -405,7 +417,26 @@ def zda(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
         st.model(_NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
-    comb.timed("ZDA", out)
+    comb._last_timed = "ZDA"  # (EpochCombiner.timed)
+    if comb._ender == "ZDA" and not comb._reported:
+        comb._report(out)
+
+
+def _zda_date(tail: str) -> tuple:
+    """((year, month, day), days since 1970) of a ZDA after its time, () unless the
+    fields are the ordinary ones (day, month, four-digit year in gpsd's bounds)."""
+    f = tail.split(",")
+    date: tuple = ()
+    if len(f) >= 3:
+        f1, f2, f3 = f[0], f[1], f[2]
+        if f1.isdigit() and f2.isdigit() and f3.isdigit() and len(f3) == 4:
+            y, m, d = int(f3), int(f2), int(f1)
+            if 1900 <= y <= 2200 and 1 <= m <= 12 and 1 <= d <= 31:
+                date = ((y, m, d), days_from_civil(y, m, d))
+    if len(_ZDA) >= _CACHE_MAX:
+        _ZDA.clear()
+    _ZDA[tail] = date
+    return date
 
 
 FAST: dict[str, Callable[..., None]] = {

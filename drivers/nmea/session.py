@@ -77,13 +77,6 @@ HANDLERS: dict[str, tuple[Handler, int, int]] = {
 TYPES = tuple(k for k in HANDLERS if not k.startswith("P"))
 
 
-def _unnormed(fix: Fix) -> bool:
-    """A track outside 0-360 degrees: gpsd's error model moves it by 360 each run (so it is
-    not the same after another run)."""
-    t, m = fix.track, fix.magtrack
-    return (t is not None and not 0.0 <= t < 360.0) or (m is not None and not 0.0 <= m < 360.0)
-
-
 @lru_cache(maxsize=64)
 def days_from_civil(y: int, m: int, d: int) -> int:
     """Days since 1970-01-01 of a (proleptic Gregorian) date; d may run past the month."""
@@ -250,7 +243,12 @@ class Session:
         """The error model on the merged fix (``new``: what the sentence gave)."""
         self._dops = dict(self.sky.dop)
         error_model(self, new)
-        self._unnormed = _unnormed(self.fix)
+        # a track outside 0-360 degrees: gpsd's error model moves it by 360 each run (so
+        # it is not the same after another run)
+        t, m = self.fix.track, self.fix.magtrack
+        self._unnormed = (t is not None and not 0.0 <= t < 360.0) or (
+            m is not None and not 0.0 <= m < 360.0
+        )
 
     def _had_altitude(self) -> bool:
         last, old = self.lastfix, self.oldfix
