@@ -102,8 +102,6 @@ _MMM = tuple(f"{ms:03d}Z" for ms in range(1000))
 # What a fix without a 2D (3D) fix, or a GST of another second, shows: nothing.
 _make_fix = positional_constructor(GpsFix)
 _make_satellite = positional_constructor(GpsSatellite)
-_NO_2D = (None,) * 17
-_NO_3D = (None,) * 6
 _NO_GST = (None,) * 7
 
 
@@ -223,7 +221,9 @@ class EpochCombiner:
     def _fix(self, f: Fix) -> GpsFix:
         st = self.session
         mode = f.mode
+        t = f.time_ns
         east = north = None
+        # what a fix shows: the position and its kin with a 2D fix, the rest in 3D only
         if mode >= MODE_2D:
             lat, lon = f.lat, f.lon
             if lat is not None and lon is not None:
@@ -233,22 +233,36 @@ class EpochCombiner:
             speed = f.speed
             if speed is DEFERRED:
                 speed = f.speed_now()
-            fix2d = (lat, lon, f.alt_msl, speed, f.track, f.alt_hae, f.eph, f.epv, f.epx,
-                     f.epy, f.sep, f.eps, f.epd, f.magvar, f.magtrack, f.dgps_age,
-                     f.dgps_station)  # fmt: skip
+            alt_msl = f.alt_msl
+            track = f.track
+            alt_hae = f.alt_hae
+            eph = f.eph
+            epv = f.epv
+            epx = f.epx
+            epy = f.epy
+            sep = f.sep
+            eps = f.eps
+            epd = f.epd
+            magvar = f.magvar
+            magtrack = f.magtrack
+            dgps_age = f.dgps_age
+            dgps_station = f.dgps_station
+            if mode >= MODE_3D:
+                geoid_sep = f.geoid_sep
+                climb = f.climb
+                epc = f.epc
+                vel_n = f.vel_n
+                vel_e = f.vel_e
+                vel_d = f.vel_d
+            else:
+                geoid_sep = climb = epc = vel_n = vel_e = vel_d = None
         else:
-            fix2d = _NO_2D
-        if mode >= MODE_3D:
-            fix3d = (f.geoid_sep, f.climb, f.epc, f.vel_n, f.vel_e, f.vel_d)
-        else:
-            fix3d = _NO_3D
-        (lat, lon, alt_msl, speed, track, alt_hae, eph, epv, epx, epy, sep, eps, epd, magvar,
-         magtrack, dgps_age, dgps_station) = fix2d  # fmt: skip
-        geoid_sep, climb, epc, vel_n, vel_e, vel_d = fix3d
-        t = f.time_ns
-        gst = (
-            st.gst if st.gst is not None and t is not None and st.gst_tod == t % DAY_NS else _NO_GST
-        )
+            lat = lon = alt_msl = speed = track = alt_hae = eph = epv = epx = epy = sep = None
+            eps = epd = magvar = magtrack = dgps_age = dgps_station = None
+            geoid_sep = climb = epc = vel_n = vel_e = vel_d = None
+        gst = st.gst
+        if gst is None or t is None or st.gst_tod != t % DAY_NS:
+            gst = _NO_GST
         dop = st.sky.dop
         quality = st.quality if st.quality is not None else (1 if mode >= MODE_2D else 0)
         sats = st.gga_sats if st.gga_sats is not None else st.sky.used_count or None

@@ -8,21 +8,26 @@ GSA, VTG, GST, ZDA) the functions here do the same in one pass: they read the fi
 locals and write the fix directly, comparing each value with the fix's as ``merge`` does,
 so the error model runs exactly when it would. Each function first checks that the
 sentence is the ordinary case it covers (every field it needs present and well formed, no
-GGA repeating its time, ...) and, before changing any state, returns False when it is
-not: the sentence then takes the reference path. What is read and how is shared with the
+GGA repeating its time, ...); when it is not, the sentence takes the reference path
+before any state has changed (:func:`reference`). What is read and how is shared with the
 reference (:mod:`drivers.nmea.fields`, the session's and the combiner's methods, the
 error model); tests/test_nmea_fastpath.py checks both paths give the same messages, stats
 and session state on gpsd's logs, damaged copies of them and synthetic streams.
 
-Signature: ``f(combiner, talker, rest, stamp_ns, out) -> handled``, ``rest`` the text of
-the fields after the address (between the first comma and the ``*``).
+Signature: ``f(combiner, talker, rest, stamp_ns, out)``, ``rest`` the text of the fields
+after the address (between the first comma and the ``*``).
+
+The error model runs after a sentence that changed the fix or the DOPs (or left a track
+outside 0-360 degrees). After every sentence, on either path, the DOPs equal those the
+error model last saw (it runs when they differ), so a sentence that does not touch the
+DOPs (VTG, GST, ZDA) need not compare them.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from drivers.nmea.fields import _FAA, atoi, ddmmyy, fnum, hhmmss_ns, latlon, number
+from drivers.nmea.fields import _FAA, _parse_hhmmss, atoi, ddmmyy, fnum, latlon, number
 from drivers.nmea.fields import NUMBERS as nums
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
 from drivers.nmea.handlers import _GGA_STATUS, KNOTS_TO_MPS
@@ -54,7 +59,7 @@ def _time(s: str) -> tuple[int | None, float | None]:
     if t is None:
         if len(_TIMES) >= _CACHE_MAX:
             _TIMES.clear()
-        t = _TIMES[s] = (hhmmss_ns(s), fnum(s))
+        t = _TIMES[s] = (_parse_hhmmss(s), fnum(s))  # (hhmmss_ns, without its own table)
     return t
 
 
@@ -349,7 +354,7 @@ def vtg(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     if fix.speed != speed:
         fix.speed = speed
         changed = True
-    if changed or sky.dop != st._dops or st._unnormed:
+    if changed or st._unnormed:
         st.model(_NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
@@ -368,7 +373,7 @@ def gst(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     sky.last_gsv_talker = sky.last_gsa_talker = ""
     st.gst = stats
     st.gst_tod = _time(f0)[0]
-    if sky.dop != st._dops or st._unnormed:
+    if st._unnormed:
         st.model(_NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
@@ -413,7 +418,7 @@ def zda(comb: EpochCombiner, talker: str, rest: str, stamp: int, out: list) -> N
     if fix.time_ns != time_ns:
         fix.time_ns = time_ns
         changed = True
-    if changed or sky.dop != st._dops or st._unnormed:
+    if changed or st._unnormed:
         st.model(_NONE)
     comb._stamp_ns = stamp
     comb._talker = talker

@@ -163,8 +163,12 @@ class Sky:
             prev_used, prev_count = self.used_prns, self.used_count
             dop_changed = False
             if dops:
-                dop_changed = not dops.items() <= self.dop.items()
-                self.dop.update(dops)
+                dop = self.dop
+                for name, v in dops.items():
+                    if dop.get(name) != v:
+                        dop_changed = True
+                        break
+                dop.update(dops)
                 mask |= DOP_SET
             if last_last == "" or (t == last_last and t != "N"):
                 used = prns[:MAXCHANNELS]  # (the tuple itself when it fits)
