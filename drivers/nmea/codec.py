@@ -20,7 +20,7 @@ import numpy as np
 
 from drivers.base import CodecStats
 from drivers.nmea.epoch import EpochCombiner
-from drivers.nmea.fastpath import FAST, reference
+from drivers.nmea.fastpath import FAST, bind, reference
 from drivers.nmea.local import Datum
 from drivers.nmea.sentences import Sentence
 from drivers.nmea.session import HANDLERS
@@ -246,8 +246,9 @@ class NmeaFramer:
         text = region.decode("ascii")
         stats = self.stats
         skipped = bad = 0
-        for s, e, verdict in zip(starts, ends, verdicts, strict=True):
-            if verdict == GOOD:
+        good = verdicts.count(GOOD)
+        if good == len(verdicts):  # (the usual run: every line a sentence)
+            for s, e in zip(starts, ends, strict=True):
                 address, _, rest = text[s + 1 : e - 3].partition(",")
                 route = routes.get(address)
                 if route is None:
@@ -257,16 +258,28 @@ class NmeaFramer:
                 else:
                     skipped += e - s
                     bad += 1
-            elif verdict == OTHER:
-                end = region.find(b"\n", s)
-                parts = self._line(region[s : len(region) if end < 0 else end])
-                if parts is not None:
-                    route = routes.get(parts[0]) or _routed(parts[0], routes, new_route)
-                    route(parts[2], stamp_ns, out)
-            else:
-                skipped += e - s
-                stats.bad_checksums += 1
-        stats.frames_ok += verdicts.count(GOOD) - bad
+        else:
+            for s, e, verdict in zip(starts, ends, verdicts, strict=True):
+                if verdict == GOOD:
+                    address, _, rest = text[s + 1 : e - 3].partition(",")
+                    route = routes.get(address)
+                    if route is None:
+                        route = _routed(address, routes, new_route)
+                    if route:
+                        route(rest, stamp_ns, out)
+                    else:
+                        skipped += e - s
+                        bad += 1
+                elif verdict == OTHER:
+                    end = region.find(b"\n", s)
+                    parts = self._line(region[s : len(region) if end < 0 else end])
+                    if parts is not None:
+                        route = routes.get(parts[0]) or _routed(parts[0], routes, new_route)
+                        route(parts[2], stamp_ns, out)
+                else:
+                    skipped += e - s
+                    stats.bad_checksums += 1
+        stats.frames_ok += good - bad
         stats.bytes_skipped += skipped
 
     def _line(self, line: bytes) -> tuple[str, str, str] | None:
@@ -364,9 +377,9 @@ class NmeaCodec:
         if talker == "P":
             kind = "P" + kind
         elif kind in self._fast:
-            return partial(self._fast[kind], self.combiner, talker)
+            return bind(self._fast[kind], self.combiner, talker)
         if kind in HANDLERS:
-            return partial(reference, self.combiner, talker, kind)
+            return bind(reference, self.combiner, talker, kind)
         return self._ignore
 
     def _ignore(self, rest: str, stamp_ns: int, out: list) -> None:

@@ -162,14 +162,15 @@ def _degrees(field: str) -> float | None:
 
 
 _LATLON: dict[tuple[str, str, str, str], tuple[float, float] | None] = {}
+_NOT_READ = object()
 
 
 def latlon(lat: str, ns: str, lon: str, ew: str) -> tuple[float, float] | None:
     """(lat, lon) in signed degrees from the four NMEA fields; None if any is missing or
     malformed (gpsd's do_lat_lon; S and W are negative, any other letter positive)."""
     key = (lat, ns, lon, ew)
-    v = _LATLON.get(key, 0)
-    if v != 0:
+    v = _LATLON.get(key, _NOT_READ)
+    if v is not _NOT_READ:
         return v  # type: ignore[return-value]
     v = None
     if lat and ns and lon and ew:
