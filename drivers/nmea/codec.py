@@ -1,275 +1,36 @@
-"""NMEA byte stream -> sentences -> :class:`msgs.GpsFix` and :class:`msgs.GpsSky`.
+"""NMEA byte stream -> :class:`msgs.GpsFix` per epoch and :class:`msgs.GpsSky`.
 
-Framing: a sentence starts at ``$`` and ends at LF (CR optional). A line is dropped and
-counted when it is overlong (over ``max_line`` bytes from ``$`` to the checksum, CR and LF
-not counted; default 128: Skytraq's PSTI sentences are 108), holds non-printable bytes
-(binary noise), or fails the XOR checksum; a line with no checksum at all is accepted only
-with ``require_checksum=False``. A sentence cut short by the start of the next
-(``$GPGGA,12$GPRMC,...``) is dropped and the next one kept, so the codec is back in step
-within one sentence. Bytes outside sentences are skipped and counted. A sentence of a
-decoded type with fewer fields than gpsd accepts, or a date out of range, is counted in
+The framer (:mod:`drivers.nmea.framer`) checks the sentences: overlong lines, binary
+noise and wrong checksums are dropped and counted, and a sentence cut short by the next
+one is dropped with the framer back in step within one sentence. Each checked sentence is
+read by the reader of its address (``GPGGA``: the talker and the type), and the readers
+apply gpsd's rules (:mod:`drivers.nmea.epoch`, :mod:`drivers.nmea.session`). A sentence of
+a decoded type with fewer fields than gpsd accepts, or a date out of range, is counted in
 ``stats.malformed``. NMEA has no sequence numbers: a lost sentence cannot be counted.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from drivers.base import CodecStats
 from drivers.nmea.epoch import EpochCombiner
+from drivers.nmea.fastfix import FAST
+from drivers.nmea.fastpath import bind, reference
+from drivers.nmea.framer import NmeaFramer, Route
 from drivers.nmea.local import Datum
-from drivers.nmea.sentences import Sentence
 from drivers.nmea.session import HANDLERS
 from msgs import GpsFix, GpsSky
 
-_HEX = frozenset(b"0123456789ABCDEFabcdef")
-_HEX2 = {
-    f"{a}{b}": int(f"{a}{b}", 16)
-    for a in "0123456789ABCDEFabcdef"
-    for b in "0123456789ABCDEFabcdef"
-}
-_sentence = tuple.__new__  # Sentence(...) without the NamedTuple's Python-level __new__
-_NUMPY_FROM = 512  # bytes from which a run's prefix XOR is computed with numpy
-
-
-# byte -> its value as a hex digit, -1 for any other byte
-_HEXVAL = np.full(256, -1, dtype=np.int16)
-for _i, _c in enumerate(b"0123456789ABCDEF"):
-    _HEXVAL[_c] = _i
-for _i, _c in enumerate(b"abcdef"):
-    _HEXVAL[_c] = 10 + _i
-_NOT_ALNUM = np.ones(256, dtype=bool)
-_NOT_ALNUM[list(b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz")] = False
-# what the vectorised checks say of a line: a sentence (proprietary: GOOD_P), a wrong
-# checksum, a bad address (fewer than 3 characters or not alphanumeric), anything else
-GOOD, GOOD_P, BAD_SUM, BAD_ADDRESS, OTHER = 0, 1, 2, 3, 4
-
-
-def _prefix_xor(data: bytes) -> bytes:
-    """p[i] = data[0] ^ ... ^ data[i] (as bytes); p[j] ^ p[i] is the XOR of data[i+1..j]."""
-    out = bytearray(len(data))
-    c = 0
-    for i, b in enumerate(data):
-        c ^= b
-        out[i] = c
-    return bytes(out)
-
-
-def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
-    """Every line of a run of complete ASCII lines, checked at once with numpy: (starts,
-    ends without a CR, ends of the address, verdicts). A sentence (GOOD, GOOD_P) is
-    ``$...*HH`` of printable bytes, one ``$``, no longer than ``max_line``, the XOR of the
-    bytes between ``$`` and ``*`` equal to HH, an address (up to the first comma) of 3 or
-    more letters and digits; BAD_SUM and BAD_ADDRESS fail only that; OTHER is anything
-    else (the per-line path)."""
-    a = np.frombuffer(region, dtype=np.uint8)
-    nl = np.flatnonzero(a == 10)
-    starts = np.concatenate(([0], nl + 1))
-    ends = np.concatenate((nl, [len(a)]))
-    last = np.maximum(ends - 1, 0)
-    ends = ends - ((ends > starts) & (a[last] == 13))  # a CR ends the line, not part of it
-    n = ends - starts
-    ok = (n >= 5) & (n <= max_line)  # "$" + address + "*HH"
-    s, e = starts[ok], ends[ok]
-    ok[ok] = (a[s] == 36) & (a[e - 3] == 42)  # "$" ... "*"
-    # one "$" per line and no byte that is not printable: counted between their positions
-    dollars = np.flatnonzero(a == 36)
-    odd = np.flatnonzero((a < 32) | (a > 126))
-    ok &= np.searchsorted(dollars, ends) - np.searchsorted(dollars, starts) == 1
-    ok &= np.searchsorted(odd, ends) == np.searchsorted(odd, starts)
-    s, e = starts[ok], ends[ok]
-    hi, lo = _HEXVAL[a[e - 2]], _HEXVAL[a[e - 1]]
-    hexed = (hi >= 0) & (lo >= 0)
-    ok[ok] = hexed
-    verdict = np.where(ok, GOOD, OTHER)
-    cut = ends - 3  # the address ends at the first comma, else at the "*"
-    good = np.flatnonzero(ok)
-    if len(good):
-        s, e, hi, lo = s[hexed], e[hexed], hi[hexed], lo[hexed]
-        bounds = np.empty(2 * len(s), dtype=np.intp)
-        bounds[0::2] = s + 1
-        bounds[1::2] = e - 3
-        xor = np.bitwise_xor.reduceat(a, bounds)[0::2]  # of the bytes between "$" and "*"
-        commas = np.flatnonzero(a == 44)
-        first = (
-            commas[np.minimum(np.searchsorted(commas, s), len(commas) - 1)] if len(commas) else e
-        )
-        c = np.where((first > s) & (first < e - 3), first, e - 3)
-        cut[good] = c
-        other = np.flatnonzero(_NOT_ALNUM[a])
-        bad_address = (c - s < 4) | (np.searchsorted(other, c) != np.searchsorted(other, s + 1))
-        verdict[good] = np.where(
-            xor != hi * 16 + lo, BAD_SUM, np.where(bad_address, BAD_ADDRESS, a[s + 1] == 80)
-        )
-    return starts.tolist(), ends.tolist(), cut.tolist(), verdict.tolist()
-
-
-class NmeaFramer:
-    """Bytes -> checked :class:`Sentence` objects (any talker, any type)."""
-
-    def __init__(self, require_checksum: bool = True, max_line: int = 128) -> None:
-        self.require_checksum = require_checksum
-        self.max_line = max_line
-        self.stats = CodecStats()
-        self.overlong = 0
-        self.noisy = 0
-        self.no_checksum = 0
-        self._buf = bytearray()
-
-    def feed(self, data: bytes) -> list[Sentence]:
-        buf = self._buf
-        buf += data
-        out: list[Sentence] = []
-        end = buf.rfind(b"\n")
-        if end >= 0:
-            region = bytes(buf[:end])
-            del buf[: end + 1]
-            self._lines(region, out)
-        # A pending CR is the end of the line, not part of it: it does not count.
-        limit = self.max_line + (buf[-1:] == b"\r")
-        if len(buf) > limit:
-            # no end of line in sight: keep only from the last '$' if it may still fit
-            start = buf.rfind(b"$")
-            fits = start >= 0 and len(buf) - start <= limit
-            if not fits:
-                self.overlong += 1
-            cut = start if fits else len(buf)
-            self.stats.bytes_skipped += cut
-            self.stats.resyncs += 1
-            del buf[:cut]
-        return out
-
-    def _lines(self, region: bytes, out: list[Sentence]) -> None:
-        """Every line of a run of complete lines. The usual line (``$...*HH``, printable
-        ASCII, short enough, right checksum) is checked for the whole run at once, with
-        numpy from ``_NUMPY_FROM`` bytes on (:func:`_classify`), else with one prefix XOR
-        (a line's checksum is two look-ups); any other line goes to :meth:`_line`."""
-        if not region.isascii():
-            for line in region.split(b"\n"):
-                self._line(line, out)
-            return
-        if len(region) >= _NUMPY_FROM:
-            self._checked(region, *_classify(region, self.max_line), out)
-            return
-        text = region.decode("ascii")
-        prefix = _prefix_xor(region)
-        max_line = self.max_line
-        stats = self.stats
-        pos = 0
-        append = out.append
-        for line in text.split("\n"):
-            n = len(line)
-            start, at = pos, pos
-            pos += n + 1
-            if line[-1:] == "\r":
-                line = line[:-1]
-            star = len(line) - 3
-            if (
-                line[:1] != "$"
-                or star < 1
-                or line[star] != "*"
-                or len(line) > max_line
-                or line.find("$", 1) > 0
-                or not line.isprintable()
-                or line[star + 1 :] not in _HEX2
-            ):
-                self._line(region[start : start + n], out)
-                continue
-            c = prefix[at + star - 1] ^ prefix[at]  # XOR of the bytes between '$' and '*'
-            if c != _HEX2[line[star + 1 :]]:
-                stats.bad_checksums += 1
-                stats.bytes_skipped += len(line)
-                continue
-            address, _, rest = line[1:star].partition(",")
-            if len(address) < 3 or not address.isalnum():
-                stats.bytes_skipped += len(line)
-                continue
-            stats.frames_ok += 1
-            if address[0] == "P":  # proprietary: $P<maker><type>
-                append(_sentence(Sentence, ("P", address[1:], tuple(rest.split(",")))))
-            else:
-                append(_sentence(Sentence, (address[:2], address[2:], tuple(rest.split(",")))))
-
-    def _checked(
-        self, region: bytes, starts: list, ends: list, cuts: list, verdicts: list, out: list
-    ) -> None:
-        """The lines of :func:`_classify`'s verdicts: sentences, counts, or :meth:`_line`."""
-        text = region.decode("ascii")
-        stats = self.stats
-        append = out.append
-        skipped = 0
-        for s, e, c, verdict in zip(starts, ends, cuts, verdicts, strict=True):
-            if verdict == GOOD:
-                fields = tuple(text[c + 1 : e - 3].split(","))
-                append(_sentence(Sentence, (text[s + 1 : s + 3], text[s + 3 : c], fields)))
-            elif verdict == GOOD_P:  # proprietary: $P<maker><type>
-                fields = tuple(text[c + 1 : e - 3].split(","))
-                append(_sentence(Sentence, ("P", text[s + 2 : c], fields)))
-            elif verdict == OTHER:
-                end = region.find(b"\n", s)
-                self._line(region[s : len(region) if end < 0 else end], out)
-            else:
-                skipped += e - s
-                if verdict == BAD_SUM:
-                    stats.bad_checksums += 1
-        stats.frames_ok += verdicts.count(GOOD) + verdicts.count(GOOD_P)
-        stats.bytes_skipped += skipped
-
-    def _line(self, line: bytes, out: list[Sentence]) -> None:
-        start = line.rfind(b"$")
-        if start < 0:
-            if line.strip(b"\r"):
-                self.stats.bytes_skipped += len(line) + 1
-                self.stats.resyncs += 1
-            return
-        if start:
-            self.stats.bytes_skipped += start
-            self.stats.resyncs += 1
-        line = line[start:].rstrip(b"\r")
-        if len(line) > self.max_line:
-            self.overlong += 1
-            self.stats.bytes_skipped += len(line)
-            return
-        try:
-            text = line.decode("ascii")
-        except UnicodeDecodeError:
-            self.noisy += 1
-            self.stats.bytes_skipped += len(line)
-            return
-        if not text.isprintable():
-            self.noisy += 1
-            self.stats.bytes_skipped += len(line)
-            return
-        star = text.rfind("*")
-        if star >= 0 and len(text) - star == 3 and _HEX.issuperset(line[star + 1 :]):
-            body = text[1:star]
-            c = 0
-            for b in line[1:star]:
-                c ^= b
-            if c != int(text[star + 1 :], 16):
-                self.stats.bad_checksums += 1
-                self.stats.bytes_skipped += len(line)
-                return
-        elif self.require_checksum:
-            self.no_checksum += 1
-            self.stats.bytes_skipped += len(line)
-            return
-        else:
-            body = text[1:]
-        address, _, rest = body.partition(",")
-        if len(address) < 3 or not address.isalnum():
-            self.stats.bytes_skipped += len(line)
-            return
-        self.stats.frames_ok += 1
-        if address[0] == "P":  # proprietary: $P<maker><type>
-            out.append(Sentence("P", address[1:], tuple(rest.split(","))))
-        else:
-            out.append(Sentence(address[:2], address[2:], tuple(rest.split(","))))
+__all__ = ["NmeaCodec", "NmeaFramer"]
 
 
 class NmeaCodec:
     """Bytes -> :class:`msgs.GpsFix` per epoch and :class:`msgs.GpsSky` when the sky
-    changed (see :mod:`drivers.nmea.epoch`)."""
+    changed (see :mod:`drivers.nmea.epoch`).
+
+    Each sentence is routed by its address (``GPGGA``, looked up once per address): the
+    ordinary sentences of the common types take :mod:`drivers.nmea.fastpath`, any other
+    the reference path (:meth:`EpochCombiner.add_into`); ``fast=False`` sends every
+    sentence the reference way (the tests compare the two). A framer whose ``feed`` is
+    overridden (one that watches the sentences) is read through its ``feed``."""
 
     def __init__(
         self,
@@ -277,29 +38,43 @@ class NmeaCodec:
         max_line: int = 128,
         datum: Datum | None = None,
         rollover_before_year: int | None = None,
+        fast: bool = True,
     ) -> None:
         self.framer = NmeaFramer(require_checksum, max_line)
         self.combiner = EpochCombiner(datum, rollover_before_year)
         self.stats = self.framer.stats
         self.ignored = 0  # well-formed sentences of types not decoded (TXT, ...)
+        self._fast = FAST if fast else {}
+        self._routes: dict[str, Route | bool] = {}  # address -> reader
 
     @property
     def malformed(self) -> int:
         """Sentences of decoded types whose fields do not parse (``stats.malformed``)."""
         return self.stats.malformed
 
+    def _route(self, talker: str, kind: str) -> Route:
+        """What reads a sentence of this talker and type: ``route(rest, stamp_ns, out)``."""
+        if talker == "P":
+            kind = "P" + kind
+        elif kind in self._fast:
+            return bind(self._fast[kind], self.combiner, talker)
+        if kind in HANDLERS:
+            return bind(reference, self.combiner, talker, kind)
+        return self._ignore
+
+    def _ignore(self, rest: str, stamp_ns: int, out: list) -> None:
+        self.ignored += 1
+
     def feed(self, data: bytes, stamp_ns: int) -> list[GpsFix | GpsSky]:
         out: list[GpsFix | GpsSky] = []
-        add = self.combiner.add_into
         session = self.combiner.session
         before = session.malformed
-        for talker, kind, fields in self.framer.feed(data):
-            if talker == "P":
-                kind = "P" + kind
-            if kind not in HANDLERS:
-                self.ignored += 1
-                continue
-            add(talker, kind, fields, stamp_ns, out)
+        framer = self.framer
+        if type(framer).feed is NmeaFramer.feed:
+            framer.feed_routed(data, self._routes, self._route, stamp_ns, out)
+        else:
+            for talker, kind, fields in framer.feed(data):
+                self._route(talker, kind)(",".join(fields), stamp_ns, out)
         self.stats.malformed += session.malformed - before
         return out
 

@@ -34,6 +34,7 @@ from drivers.nmea.fixstate import (
     ALTITUDE_SET,
     CLEAR_IS,
     CLIMB_SET,
+    DEFERRED,
     LATLON_SET,
     MAGNETIC_TRACK_SET,
     MODE_2D,
@@ -87,16 +88,20 @@ def iso_time(ns: int | None) -> str:
             _DAYS.clear()
     s, milli = divmod(ms_of_day, 1000)
     m, s = divmod(s, 60)
-    h, m = divmod(m, 60)
-    _LAST[:] = [ns, f"{date}{h:02d}:{m:02d}:{s:02d}.{milli:03d}Z"]
-    return _LAST[1]
+    text = _LAST[1] = date + _HHMM[m] + _SS[s] + _MMM[milli]
+    _LAST[0] = ns
+    return text
+
+
+# the pieces of a time of day: "hh:mm:" of each minute, "ss." of each second, "mmmZ"
+_HHMM = tuple(f"{m // 60:02d}:{m % 60:02d}:" for m in range(1440))
+_SS = tuple(f"{s:02d}." for s in range(61))
+_MMM = tuple(f"{ms:03d}Z" for ms in range(1000))
 
 
 # What a fix without a 2D (3D) fix, or a GST of another second, shows: nothing.
 _make_fix = positional_constructor(GpsFix)
 _make_satellite = positional_constructor(GpsSatellite)
-_NO_2D = (None,) * 17
-_NO_3D = (None,) * 6
 _NO_GST = (None,) * 7
 
 
@@ -132,10 +137,7 @@ class EpochCombiner:
         st = self.session
         mask, new = st.parse(talker, kind, fields)
         if mask & CLEAR_IS:
-            self._close(out)
-            self._ender = self._last_timed
-            self._last_timed = None
-            self._reported = False
+            self.new_epoch(out)
         worthy = mask & _FIX_BITS
         if worthy:
             self._pending = True
@@ -147,9 +149,20 @@ class EpochCombiner:
         if kind != "GSV" and kind != "GSA":
             self._talker = talker
         if kind in _TIMED and (st.latch_frac or (kind == "ZDA" and "time_ns" in new)):
-            self._last_timed = kind
-            if kind == self._ender and not self._reported:
-                self._report(out)
+            self.timed(kind, out)
+
+    def new_epoch(self, out: list) -> None:
+        """A sentence starts a new cycle: the last epoch ends (before its data is merged)."""
+        self._close(out)
+        self._ender = self._last_timed
+        self._last_timed = None
+        self._reported = False
+
+    def timed(self, kind: str, out: list) -> None:
+        """A sentence of type ``kind`` gave this epoch's time: the fix if it ends the cycle."""
+        self._last_timed = kind
+        if kind == self._ender and not self._reported:
+            self._report(out)
 
     def flush(self) -> list:
         """The pending epoch's fix and sky (end of a stream), if not reported yet."""
@@ -208,29 +221,48 @@ class EpochCombiner:
     def _fix(self, f: Fix) -> GpsFix:
         st = self.session
         mode = f.mode
+        t = f.time_ns
         east = north = None
+        # what a fix shows: the position and its kin with a 2D fix, the rest in 3D only
         if mode >= MODE_2D:
             lat, lon = f.lat, f.lon
             if lat is not None and lon is not None:
                 if self.datum is None:
                     self.datum = Datum(lat, lon)
                 east, north = self.datum.to_local(lat, lon)
-            fix2d = (lat, lon, f.alt_msl, f.speed_now(), f.track, f.alt_hae, f.eph, f.epv, f.epx,
-                     f.epy, f.sep, f.eps, f.epd, f.magvar, f.magtrack, f.dgps_age,
-                     f.dgps_station)  # fmt: skip
+            speed = f.speed
+            if speed is DEFERRED:
+                speed = f.speed_now()
+            alt_msl = f.alt_msl
+            track = f.track
+            alt_hae = f.alt_hae
+            eph = f.eph
+            epv = f.epv
+            epx = f.epx
+            epy = f.epy
+            sep = f.sep
+            eps = f.eps
+            epd = f.epd
+            magvar = f.magvar
+            magtrack = f.magtrack
+            dgps_age = f.dgps_age
+            dgps_station = f.dgps_station
+            if mode >= MODE_3D:
+                geoid_sep = f.geoid_sep
+                climb = f.climb
+                epc = f.epc
+                vel_n = f.vel_n
+                vel_e = f.vel_e
+                vel_d = f.vel_d
+            else:
+                geoid_sep = climb = epc = vel_n = vel_e = vel_d = None
         else:
-            fix2d = _NO_2D
-        if mode >= MODE_3D:
-            fix3d = (f.geoid_sep, f.climb, f.epc, f.vel_n, f.vel_e, f.vel_d)
-        else:
-            fix3d = _NO_3D
-        (lat, lon, alt_msl, speed, track, alt_hae, eph, epv, epx, epy, sep, eps, epd, magvar,
-         magtrack, dgps_age, dgps_station) = fix2d  # fmt: skip
-        geoid_sep, climb, epc, vel_n, vel_e, vel_d = fix3d
-        t = f.time_ns
-        gst = (
-            st.gst if st.gst is not None and t is not None and st.gst_tod == t % DAY_NS else _NO_GST
-        )
+            lat = lon = alt_msl = speed = track = alt_hae = eph = epv = epx = epy = sep = None
+            eps = epd = magvar = magtrack = dgps_age = dgps_station = None
+            geoid_sep = climb = epc = vel_n = vel_e = vel_d = None
+        gst = st.gst
+        if gst is None or t is None or st.gst_tod != t % DAY_NS:
+            gst = _NO_GST
         dop = st.sky.dop
         quality = st.quality if st.quality is not None else (1 if mode >= MODE_2D else 0)
         sats = st.gga_sats if st.gga_sats is not None else st.sky.used_count or None

@@ -102,8 +102,24 @@ def _velocities(fix) -> None:
             fix.track = math.degrees(math.atan2(fix.vel_e, fix.vel_n))
 
 
-def _derived(fix) -> None:
-    """Velocities, track, altitudes: what follows from the fix's own fields."""
+def error_model(st: Session, new: dict) -> None:
+    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave)."""
+    fix = st.fix
+    t = fix.time_ns
+    if t:
+        last = st.lastfix
+        dt = (t - (last.time_ns or 0)) * 1e-9
+        if dt > 0.0099 or dt < -0.0099:
+            st.oldfix = last  # time moved on: the last fix is now the previous one
+        else:
+            dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
+    else:
+        dt = -1.0
+    old = st.oldfix
+    lat, lon = fix.lat, fix.lon
+    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        fix.lat = fix.lon = None
+    # what follows from the fix's own fields: velocities, track, altitudes
     v = fix.speed
     if v is not None and abs(v) > _MAX_RATE:  # (False for a deferred speed)
         fix.speed = None
@@ -130,26 +146,7 @@ def _derived(fix) -> None:
                 fix.alt_msl = fix.alt_hae - sep
         elif fix.alt_hae is None:
             fix.alt_hae = fix.alt_msl + sep
-
-
-def error_model(st: Session, new: dict) -> None:
-    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave)."""
-    fix = st.fix
-    t = fix.time_ns
-    if t:
-        last = st.lastfix
-        dt = (t - (last.time_ns or 0)) * 1e-9
-        if dt > 0.0099 or dt < -0.0099:
-            st.oldfix = last  # time moved on: the last fix is now the previous one
-        else:
-            dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
-    else:
-        dt = -1.0
-    old = st.oldfix
-    lat, lon = fix.lat, fix.lon
-    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-        fix.lat = fix.lon = None
-    _derived(fix)
+    # what follows from the previous epoch's fix: speed, climb
     mode = fix.mode
     moved = dt > 0 and mode >= MODE_2D and old.mode >= MODE_2D
     if moved:
@@ -161,38 +158,37 @@ def error_model(st: Session, new: dict) -> None:
             fix.climb = _sane((fix.alt_hae - old.alt_hae) / dt)
     if t and fix.ept is None:
         fix.ept = 0.005
-    if mode >= MODE_2D:
-        _estimates(st, fix, new, dt, moved)
-    if t:
-        st.lastfix = fix  # the fix itself: a later sentence without a time copies it first
-
-
-def _estimates(st, fix, new: dict, dt: float, moved: bool) -> None:
-    h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
+    if mode < MODE_2D:
+        if t:
+            st.lastfix = fix
+        return
+    # the 95 % estimates: from the DOPs (kept once the fix has them), then from the
+    # previous epoch's fix (speed, track and climb errors)
     dop = st.sky.dop
     if dop:
+        h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
         get = dop.get
         if "epx" not in new and (xdop := get("xdop")) is not None:
             fix.epx = xdop * h_uere
         if "epy" not in new and (ydop := get("ydop")) is not None:
             fix.epy = ydop * h_uere
-        if fix.epv is None and fix.mode >= MODE_3D and (vdop := get("vdop")) is not None:
+        if fix.epv is None and mode >= MODE_3D and (vdop := get("vdop")) is not None:
             fix.epv = vdop * v_uere
         if fix.eph is None and (hdop := get("hdop")) is not None:
             fix.eph = hdop * p_uere
         if fix.sep is None and (pdop := get("pdop")) is not None:
             fix.sep = pdop * p_uere
-    if not moved:
-        return
-    old = st.oldfix
-    if old.epx is not None and old.epy is not None and "eps" not in new:
-        a, b = _emax(old.epx, old.epy), _emax(fix.epx, fix.epy)
-        fix.eps = None if a is None or b is None else (a + b) / dt
-    if fix.epd is None:
-        opp = _emax(fix.epx, fix.epy)
-        if opp is not None:
-            adj = st.distance(old.lat, old.lon, fix.lat, fix.lon)
-            if adj is not None and adj > opp:
-                fix.epd = math.degrees(2 * math.asin(opp / math.hypot(adj, opp)))
-    if fix.epv is not None and old.epv is not None and "epc" not in new:
-        fix.epc = (old.epv + fix.epv) / dt
+    if moved:
+        if old.epx is not None and old.epy is not None and "eps" not in new:
+            a, b = _emax(old.epx, old.epy), _emax(fix.epx, fix.epy)
+            fix.eps = None if a is None or b is None else (a + b) / dt
+        if fix.epd is None:
+            opp = _emax(fix.epx, fix.epy)
+            if opp is not None:
+                adj = st.distance(old.lat, old.lon, fix.lat, fix.lon)
+                if adj is not None and adj > opp:
+                    fix.epd = math.degrees(2 * math.asin(opp / math.hypot(adj, opp)))
+        if fix.epv is not None and old.epv is not None and "epc" not in new:
+            fix.epc = (old.epv + fix.epv) / dt
+    if t:
+        st.lastfix = fix  # the fix itself: a later sentence without a time copies it first

@@ -10,7 +10,8 @@
   an integer, the fraction added once, times 1/60), so results agree to the last bit.
 
 Fields that repeat within an epoch (the time, the position in GGA and RMC) are parsed
-once: the time and position parsers keep small caches of recent fields.
+once: the time and position parsers keep small caches of recent fields, and
+:func:`number` is :func:`fnum` with one.
 """
 
 from __future__ import annotations
@@ -38,6 +39,26 @@ def fnum(s: str) -> float | None:
     if v is None or v - v != 0.0:  # NaN or infinite
         return None
     return v
+
+
+NUMBERS: dict[str, float | None] = {}  # field -> fnum(field), for number()
+
+
+def number(s: str) -> float | None:
+    """:func:`fnum`, remembered for the last fields read: a receiver repeats many (the
+    geoid separation, the DOPs, an altitude or course that holds, a VTG's course and speed
+    after the RMC's). Hot paths look in ``NUMBERS`` first: ``NUMBERS.get(s) or number(s)``
+    (a false value, None or 0.0, is read again here, from the same table)."""
+    v = NUMBERS.get(s, _MISSING)
+    if v is _MISSING:
+        if len(NUMBERS) >= _NUMBERS_MAX:
+            NUMBERS.clear()
+        v = NUMBERS[s] = fnum(s)
+    return v  # type: ignore[return-value]
+
+
+_MISSING = object()
+_NUMBERS_MAX = 256
 
 
 def _prefix_float(s: str) -> float | None:
@@ -141,14 +162,15 @@ def _degrees(field: str) -> float | None:
 
 
 _LATLON: dict[tuple[str, str, str, str], tuple[float, float] | None] = {}
+_NOT_READ = object()
 
 
 def latlon(lat: str, ns: str, lon: str, ew: str) -> tuple[float, float] | None:
     """(lat, lon) in signed degrees from the four NMEA fields; None if any is missing or
     malformed (gpsd's do_lat_lon; S and W are negative, any other letter positive)."""
     key = (lat, ns, lon, ew)
-    v = _LATLON.get(key, 0)
-    if v != 0:
+    v = _LATLON.get(key, _NOT_READ)
+    if v is not _NOT_READ:
         return v  # type: ignore[return-value]
     v = None
     if lat and ns and lon and ew:

@@ -77,13 +77,6 @@ HANDLERS: dict[str, tuple[Handler, int, int]] = {
 TYPES = tuple(k for k in HANDLERS if not k.startswith("P"))
 
 
-def _unnormed(fix: Fix) -> bool:
-    """A track outside 0-360 degrees: gpsd's error model moves it by 360 each run (so it is
-    not the same after another run)."""
-    t, m = fix.track, fix.magtrack
-    return (t is not None and not 0.0 <= t < 360.0) or (m is not None and not 0.0 <= m < 360.0)
-
-
 @lru_cache(maxsize=64)
 def days_from_civil(y: int, m: int, d: int) -> int:
     """Days since 1970-01-01 of a (proleptic Gregorian) date; d may run past the month."""
@@ -219,10 +212,7 @@ class Session:
         fix = self.fix
         changed = False
         if mask & CLEAR_IS:
-            if not mask & DOP_SET:
-                sky.dop.clear()
-            fix = self.fix = Fix()
-            self.quality = self.gga_sats = None
+            fix = self.new_cycle(mask & DOP_SET)
             changed = True
         elif mask & TIME_SET and not new.get("time_ns") and self.lastfix is fix:
             self.lastfix = fix.copy()  # this sentence leaves the fix without a time
@@ -237,12 +227,28 @@ class Session:
             changed = True
         if mask & SATELLITE_SET and sky.view:
             sky.fill_dop()
-        dop = sky.dop
         # (of the estimates a sentence may give, only GBS and PGRME give epx/epy)
-        if changed or dop != self._dops or self._unnormed or "epx" in new or "epy" in new:
-            self._dops = dict(dop)
-            error_model(self, new)
-            self._unnormed = _unnormed(self.fix)
+        if changed or sky.dop != self._dops or self._unnormed or "epx" in new or "epy" in new:
+            self.model(new)
+
+    def new_cycle(self, keep_dops: int) -> Fix:
+        """gpsd's CLEAR_IS: a new fix (the DOPs cleared unless the sentence gave some)."""
+        if not keep_dops:
+            self.sky.dop.clear()
+        fix = self.fix = Fix()
+        self.quality = self.gga_sats = None
+        return fix
+
+    def model(self, new: dict) -> None:
+        """The error model on the merged fix (``new``: what the sentence gave)."""
+        self._dops = dict(self.sky.dop)
+        error_model(self, new)
+        # a track outside 0-360 degrees: gpsd's error model moves it by 360 each run (so
+        # it is not the same after another run)
+        t, m = self.fix.track, self.fix.magtrack
+        self._unnormed = (t is not None and not 0.0 <= t < 360.0) or (
+            m is not None and not 0.0 <= m < 360.0
+        )
 
     def _had_altitude(self) -> bool:
         last, old = self.lastfix, self.oldfix

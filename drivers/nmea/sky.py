@@ -131,7 +131,7 @@ class Sky:
     """Satellites used (GSA) and in view (GSV), the DOPs, and GSA/GSV parsing state."""
 
     def __init__(self) -> None:
-        self.used_prns: list[int] = []
+        self.used_prns: tuple[int, ...] = ()
         self.used_count = 0  # satellites used: GSA's list, or GGA's count when it came later
         self.view: list[Satellite] = []
         self.dop: dict[str, float] = {}  # xdop ydop hdop vdop pdop tdop gdop
@@ -146,26 +146,37 @@ class Sky:
     # -------------------------------------------------------------- GSA
     def gsa(self, talker: str, f: tuple[str, ...], new: dict, latch_mode: bool) -> int:
         """One GSA: mode, DOPs, satellites used. ``f`` excludes the address field."""
-        count = len(f) + 1
+        read = _gsa_fields(talker, f) if len(f) + 1 >= 18 and not latch_mode else None
+        return self.gsa_read(talker, read, new)
+
+    def gsa_read(self, talker: str, read: tuple | None, new: dict) -> int:
+        """One GSA of what :func:`_gsa_fields` read (None: too short, or after a latched
+        GGA; its talker still counts)."""
         t = talker[1:2]
         last_last = self.last_gsa_talker
         mask = 0
-        if count >= 18 and not latch_mode:
-            mode, mode_set, dops, prns = _gsa_fields(talker, f)
+        if read is not None:
+            mode, mode_set, dops, prns = read
             new["mode"] = mode
             if mode_set:
                 mask = MODE_SET
-            prev_used, prev_count = self.used_prns, self.used_count  # (lists never mutated)
+            prev_used, prev_count = self.used_prns, self.used_count
             dop_changed = False
             if dops:
-                dop_changed = not dops.items() <= self.dop.items()
-                self.dop.update(dops)
+                dop = self.dop
+                for name, v in dops.items():
+                    if dop.get(name) != v:
+                        dop_changed = True
+                        break
+                dop.update(dops)
                 mask |= DOP_SET
             if last_last == "" or (t == last_last and t != "N"):
-                self.used_prns = []
+                used = prns[:MAXCHANNELS]  # (the tuple itself when it fits)
+            else:
+                used = prev_used + prns[: MAXCHANNELS - len(prev_used)]
+            self.used_prns = used
             self.last_gsa_talker = t
             self.seen_gsa.add(t)
-            used = self.used_prns = self.used_prns + list(prns[: MAXCHANNELS - len(self.used_prns)])
             self.used_count = len(used)
             mask |= USED_IS
             if dop_changed or prev_count != self.used_count or prev_used != used:

@@ -1,0 +1,257 @@
+"""The fast path's readers of the sentences that give the position: GGA and RMC.
+
+Same contract as :mod:`drivers.nmea.fastpath` (the other readers, and the rules they
+share): the ordinary sentence read and merged in one pass, anything else the reference
+way (Session.parse / Session.apply, with handlers.gga and handlers.rmc) before any state
+changes. Both start a new cycle when their time of day differs from the last one
+registered, which ends the epoch (EpochCombiner.new_epoch) before their data is merged.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from drivers.nmea.fastpath import (
+    _DATES,
+    _NONE,
+    HOUR_NS,
+    _date,
+    _time,
+    gsa,
+    gst,
+    reference,
+    vtg,
+    zda,
+)
+from drivers.nmea.fields import _FAA, atoi, fnum, latlon, number
+from drivers.nmea.fields import NUMBERS as nums
+from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX
+from drivers.nmea.handlers import _GGA_STATUS, KNOTS_TO_MPS
+from drivers.nmea.session import DAY_NS, ROLLOVER_S
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from drivers.nmea.epoch import EpochCombiner
+
+# GGA quality field -> (quality, gpsd status)
+_QUALITY = {str(q): (q, s) for q, s in _GGA_STATUS.items()}
+
+
+def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
+    f = rest.split(",")
+    if len(f) < 14:
+        return reference(rest, stamp, out, comb, talker, "GGA")
+    st = comb.session
+    f0, f6 = f[0], f[6]
+    q = _QUALITY.get(f[5])
+    if q is None or not f0 or not f6.isdigit():
+        return reference(rest, stamp, out, comb, talker, "GGA")
+    this_talker = talker[1:2]
+    last_talker = st.last_gga_talker
+    if f0 == st.last_gga_time and (not last_talker or last_talker == this_talker):
+        return reference(rest, stamp, out, comb, talker, "GGA")  # latched: no fix
+    ns, frac = _time(f0)
+    if ns is None:
+        return reference(rest, stamp, out, comb, talker, "GGA")
+    pos = latlon(f[1], f[2], f[3], f[4])
+    if pos is None:
+        return reference(rest, stamp, out, comb, talker, "GGA")
+    # --- the ordinary GGA from here on (Session.parse, handlers.gga)
+    quality, status = q
+    sats = int(f6)
+    st.last_gga_talker = this_talker
+    st.latch_mode = False
+    st.last_gga_time = f0
+    tod = st.tod_ns
+    if tod is not None and ns < tod and ns // HOUR_NS < tod // HOUR_NS:
+        st.day += 1  # (Session.merge_hhmmss: the hour went back, past midnight)
+    st.tod_ns = ns
+    last = st.last_frac = st.this_frac
+    st.this_frac = frac
+    st.latch_frac = True
+    st.gsx_more = False
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    lat, lon = pos
+    mode = 2
+    f8 = f[8]
+    alt = (nums.get(f8) or number(f8)) if f8 else None
+    if f8 and sats >= 4:
+        mode = MODE_3D
+    sep = (nums.get(f[10]) or number(f[10])) if f[10] else None
+    if sats < 3:
+        mode = MODE_NO_FIX
+    hdop = nums.get(f[7]) or number(f[7])
+    if hdop is not None and not hdop < 99.0:
+        hdop = None
+    age = station = None
+    if f[12] and f[13]:
+        age, station = fnum(f[12]), atoi(f[13])
+        if age is None or not (age > 0.09 or station > 0):
+            age = None
+    fix = st.fix
+    if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
+        mode = MODE_3D
+    clear = frac is None or last is None or abs(frac - last) > 0.01  # (Session.parse)
+    # --- EpochCombiner.add_into and Session.apply
+    if clear:
+        comb.new_epoch(out)
+    comb._pending = True
+    comb._snap = None
+    if clear:
+        fix = st.new_cycle(hdop is not None)
+        changed = True
+    else:
+        changed = False
+    if st.date is not None:
+        time_ns = st.day * DAY_NS + ns
+        if not clear and not time_ns and st.lastfix is fix:
+            st.lastfix = fix.copy()
+        if fix.time_ns != time_ns:
+            fix.time_ns = time_ns
+            changed = True
+    if hdop is not None:
+        sky.dop["hdop"] = hdop
+    st.quality, st.gga_sats = quality, sats
+    if sky.used_count != sats:
+        sky.used_count = sats
+        sky.changed = True
+    if fix.lat != lat:
+        fix.lat = lat
+        changed = True
+    if fix.lon != lon:
+        fix.lon = lon
+        changed = True
+    if sep is not None and fix.geoid_sep != sep:
+        fix.geoid_sep = sep
+        changed = True
+    if alt is not None and fix.alt_msl != alt:
+        fix.alt_msl = alt
+        changed = True
+    if fix.mode != mode:
+        fix.mode = mode
+        changed = True
+    if fix.status < status:
+        fix.status = status
+        changed = True
+    if age is not None and (fix.dgps_age, fix.dgps_station) != (age, station):
+        fix.dgps_age, fix.dgps_station = age, station
+        changed = True
+    if changed or sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+    comb._last_timed = "GGA"  # (EpochCombiner.timed)
+    if comb._ender == "GGA" and not comb._reported:
+        comb._report(out)
+
+
+def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
+    f = rest.split(",")
+    n = len(f)
+    if n < 11:
+        return reference(rest, stamp, out, comb, talker, "RMC")
+    status = f[1]
+    f0, f8 = f[0], f[8]
+    if (status != "A" and status != "D") or not f0 or not f8:
+        return reference(rest, stamp, out, comb, talker, "RMC")
+    st = comb.session
+    ns, frac = _time(f0)
+    date = _DATES.get(f8) or _date(f8)
+    if ns is None or not date:
+        return reference(rest, stamp, out, comb, talker, "RMC")
+    pos = latlon(f[2], f[3], f[4], f[5])
+    last_mode = st.lastfix.mode
+    if pos is None or last_mode > MODE_3D:  # (a GSA may give any number as the mode)
+        return reference(rest, stamp, out, comb, talker, "RMC")
+    # --- the ordinary RMC from here on (Session.parse, handlers.rmc)
+    st.gsx_more = False
+    st.tod_ns = ns  # (a midnight wrap of the day is overridden by the date just below)
+    ymd, day = date
+    st.date = ymd
+    if st.rollover_before_year is not None and ymd[0] < st.rollover_before_year:
+        day += ROLLOVER_S // 86400
+    st.day = day
+    last = st.last_frac = st.this_frac
+    st.this_frac = frac
+    st.latch_frac = True
+    lat, lon = pos
+    mode = MODE_3D if last_mode == MODE_3D else 2
+    speed_set = bool(f[6])
+    if speed_set:
+        speed = nums.get(f[6]) or number(f[6])
+        if speed is not None:
+            speed *= KNOTS_TO_MPS
+    track_set = bool(f[7])
+    track = (nums.get(f[7]) or number(f[7])) if track_set else None
+    magvar = None
+    if f[9] and f[10]:
+        var = fnum(f[9])
+        hemi = f[10][0]
+        if var is not None and hemi in "EW" and abs(var) > 0.09:
+            magvar = -var if hemi == "W" else var
+    newstatus = _FAA.get(f[11][:1], 1) if n > 11 else 0  # (fields.faa_status)
+    fix = st.fix
+    if st.sky.used_count > 3 or fix.alt_hae is not None or fix.alt_msl is not None:
+        mode = MODE_3D
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    time_ns = day * DAY_NS + ns
+    if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
+        mode = MODE_3D
+    clear = frac is None or last is None or abs(frac - last) > 0.01  # (Session.parse)
+    # --- EpochCombiner.add_into and Session.apply
+    if clear:
+        comb.new_epoch(out)
+    comb._pending = True
+    comb._snap = None
+    if clear:
+        fix = st.new_cycle(0)
+        changed = True
+    else:
+        changed = False
+        if not time_ns and st.lastfix is fix:
+            st.lastfix = fix.copy()
+    if fix.time_ns != time_ns:
+        fix.time_ns = time_ns
+        changed = True
+    if fix.lat != lat:
+        fix.lat = lat
+        changed = True
+    if fix.lon != lon:
+        fix.lon = lon
+        changed = True
+    if speed_set and fix.speed != speed:
+        fix.speed = speed
+        changed = True
+    if track_set and fix.track != track:
+        fix.track = track
+        changed = True
+    if magvar is not None and fix.magvar != magvar:
+        fix.magvar = magvar
+        changed = True
+    if fix.mode != mode:
+        fix.mode = mode
+        changed = True
+    if fix.status < newstatus:
+        fix.status = newstatus
+        changed = True
+    if changed or sky.dop != st._dops or st._unnormed:
+        st.model(_NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+    comb._last_timed = "RMC"  # (EpochCombiner.timed)
+    if comb._ender == "RMC" and not comb._reported:
+        comb._report(out)
+
+
+# type -> its fast reader (the talker does not matter; proprietary sentences have none)
+FAST: dict[str, Callable[..., None]] = {
+    "GGA": gga,
+    "RMC": rmc,
+    "GSA": gsa,
+    "VTG": vtg,
+    "GST": gst,
+    "ZDA": zda,
+}
