@@ -34,13 +34,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
+from mapping.ir_cone import attenuate, cell_updates, cone_cells
 from msgs import IrScan, Pose2D
-from numerics.angles import wrap
+
+__all__ = ["attenuate"]  # eq. 6 lives with the cone cells (mapping.ir_cone)
 
 KIND_SKIP = -1
 KIND_HIT = 0
 KIND_CLEAR = 1
 _STATUS_KIND = {"ok": KIND_HIT, "too_far": KIND_CLEAR, "no_return": KIND_CLEAR}
+_FIELDS = ("x", "y", "angle", "range_m", "kind", "sigma_rad")
 
 
 @dataclass(frozen=True)
@@ -77,14 +80,6 @@ class InverseModelConfig:
             raise ValueError(
                 "inverse model needs 0 < min_half_angle_rad <= max_half_angle_rad < pi/2"
             )
-
-
-def attenuate(p: np.ndarray, alpha: np.ndarray, three_sigma: np.ndarray) -> np.ndarray:
-    """Eq. (6): pull p towards 0.5 with the exponent 1 + |alpha / (3 sigma)|."""
-    p = np.asarray(p, dtype=float)
-    e = 1.0 + np.abs(np.asarray(alpha, dtype=float) / np.asarray(three_sigma, dtype=float))
-    d = np.abs(p - 0.5) ** e
-    return np.where(p < 0.5, 0.5 - d, np.where(p > 0.5, 0.5 + d, p))
 
 
 @dataclass
@@ -176,7 +171,11 @@ class IrInverseModel:
         return np.minimum(r, self.config.max_range_m + w)
 
     def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
-        """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit."""
+        """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit.
+
+        The cells by beam, then by flat index (a cell once per beam). Exactly
+        :func:`mapping.ir_reference.reference_updates`, computed by :mod:`mapping.ir_cone`.
+        """
         if len(beams) == 0:
             return np.zeros(0, dtype=np.int64), np.zeros(0)
         res = grid.resolution
@@ -190,71 +189,19 @@ class IrInverseModel:
             float(np.max(beams.x + ext)),
             float(np.max(beams.y + ext)),
         )
-        spacing = 0.7 * res
-        k_n = np.ceil(reach / spacing).astype(np.int64)
-        j_n = np.ceil(reach * np.tan(h) / spacing).astype(np.int64) + 1
-        per = k_n * (2 * j_n + 1)
-        # Split large batches to bound memory.
-        if per.sum() > self.max_samples_per_call and len(beams) > 1:
-            idx_parts, dl_parts = [], []
-            csum = np.cumsum(per)
-            start = 0
-            while start < len(beams):
-                stop = int(
-                    np.searchsorted(csum, csum[start] - per[start] + self.max_samples_per_call)
-                )
-                stop = max(stop, start + 1)
-                sub = Beams(*(getattr(beams, n)[start:stop] for n in
-                              ("x", "y", "angle", "range_m", "kind", "sigma_rad")))  # fmt: skip
-                i, d = self.updates(grid, sub)
-                idx_parts.append(i)
-                dl_parts.append(d)
-                start = stop
-            return np.concatenate(idx_parts), np.concatenate(dl_parts)
-        total = int(per.sum())
-        beam_id = np.repeat(np.arange(len(beams)), per)
-        offsets = np.concatenate([[0], np.cumsum(per)[:-1]])
-        q = np.arange(total) - offsets[beam_id]
-        width = 2 * j_n[beam_id] + 1
-        k = q // width
-        j = q % width - j_n[beam_id]
-        t = (k + 0.5) * spacing
-        lat = j * spacing
-        keep = np.abs(lat) <= t * np.tan(h[beam_id]) + res
-        beam_id, t, lat = beam_id[keep], t[keep], lat[keep]
-        ca, sa = np.cos(beams.angle), np.sin(beams.angle)
-        px = beams.x[beam_id] + t * ca[beam_id] - lat * sa[beam_id]
-        py = beams.y[beam_id] + t * sa[beam_id] + lat * ca[beam_id]
-        row, col = grid.cell_of(px, py)
-        rows, cols = grid.shape
-        ncell = rows * cols
-        key = np.unique(beam_id.astype(np.int64) * ncell + row * cols + col)
-        b = key // ncell
-        flat = key % ncell
-        row, col = flat // cols, flat % cols
-        cx, cy = grid.centre_of(row, col)
-        vx, vy = cx - beams.x[b], cy - beams.y[b]
-        r = np.hypot(vx, vy)
-        alpha = np.abs(wrap(np.arctan2(vy, vx) - beams.angle[b]))
-        cell_radius = 0.7072 * res
-        alpha_eff = np.maximum(
-            0.0, alpha - np.arcsin(np.minimum(1.0, cell_radius / np.maximum(r, 1e-9)))
+        use = np.flatnonzero(reach > 0)  # a cone of no length has no lattice point
+        if len(use) < len(beams):
+            beams = Beams(*(getattr(beams, n)[use] for n in _FIELDS))
+            h, reach = h[use], reach[use]
+            if len(use) == 0:
+                return np.zeros(0, dtype=np.int64), np.zeros(0)
+        x, y, angle = (
+            np.ascontiguousarray(a, dtype=float) for a in (beams.x, beams.y, beams.angle)
         )
-        alpha_eff = np.where(r <= cell_radius, 0.0, alpha_eff)
-        hb = h[b]
-        c = self.config
-        w = max(c.hit_halfwidth_m, 0.75 * res)
-        z = beams.range_m[b]
-        hit = beams.kind[b] == KIND_HIT
-        p = np.full(r.shape, 0.5)
-        with np.errstate(invalid="ignore"):
-            p = np.where(hit & (r < z - w), c.p_free, p)
-            p = np.where(hit & (np.abs(r - z) <= w), c.p_occupied, p)
-        p = np.where(~hit & (r <= c.max_range_m), c.p_free, p)
-        sel = (alpha_eff <= hb) & (p != 0.5)
-        p = attenuate(p[sel], alpha_eff[sel], hb[sel])
-        dl = np.log(p) - np.log1p(-p)
-        return flat[sel], dl
+        hit = beams.kind == KIND_HIT
+        z = np.where(hit, beams.range_m, np.nan)
+        cells = cone_cells(grid, x, y, angle, h, reach)
+        return cell_updates(grid, self.config, (x, y), angle, hit, z, h, cells)
 
     def integrate(self, grid: OccupancyGrid, beams: Beams) -> int:
         """Apply the beams to the grid, a bounded batch at a time (each batch's updates
