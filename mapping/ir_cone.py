@@ -164,11 +164,11 @@ def cell_updates(
     x, y = beams_xy
     col += 0.5
     col *= res
-    vx = ox + col
+    vx = np.add(ox, col, out=col)
     vx -= np.repeat(x, per)
     row += 0.5
     row *= res
-    vy = oy + row
+    vy = np.add(oy, row, out=row)
     vy -= np.repeat(y, per)
     r = np.hypot(vx, vy)
     w = max(config.hit_halfwidth_m, 0.75 * res)
@@ -179,21 +179,20 @@ def cell_updates(
         tmp = r - np.repeat(z, per)
         occ = np.abs(tmp, out=tmp) <= w
     free |= occ
-    some = np.flatnonzero(free)
-    per = np.diff(np.searchsorted(some, np.cumsum(per) - per), append=len(some))
-    r, occ = r[some], occ[some]
-    alpha = np.arctan2(vy[some], vx[some])
+    # Eq. 6's angle: from the axis to the nearest point of the cell.
+    alpha = np.arctan2(vy, vx, out=vy)
     alpha -= np.repeat(angle, per)
     alpha = _wrap_abs(alpha)
     cell_radius = 0.7072 * res
-    tmp = np.maximum(r, 1e-9)
+    tmp = np.maximum(r, 1e-9, out=vx)
     np.divide(cell_radius, tmp, out=tmp)
     np.minimum(tmp, 1.0, out=tmp)
     alpha -= np.arcsin(tmp, out=tmp)
     np.maximum(alpha, 0.0, out=alpha)
     alpha[r <= cell_radius] = 0.0
     hb = np.repeat(h, per)
-    sel = np.flatnonzero(alpha <= hb)
+    free &= alpha <= hb
+    sel = np.flatnonzero(free)
     # Eq. 6 as attenuate() computes it: |p - 0.5| ** (1 + |alpha / 3 sigma|) (alpha >= 0).
     occ = occ[sel]
     e = alpha[sel]
@@ -205,4 +204,4 @@ def cell_updates(
     np.add(0.5, d, out=p, where=occ)
     dl = np.log(p)
     dl -= np.log1p(np.negative(p, out=p), out=p)
-    return flat[some[sel]], dl
+    return flat[sel], dl

@@ -165,23 +165,39 @@ class IrInverseModel:
                        c.min_half_angle_rad, c.max_half_angle_rad)  # fmt: skip
 
     def reach(self, beams: Beams, res: float) -> np.ndarray:
-        w = max(self.config.hit_halfwidth_m, 0.75 * res)
-        hit = beams.kind == KIND_HIT
-        r = np.where(hit, np.nan_to_num(beams.range_m, nan=0.0) + w, self.config.max_range_m)
-        return np.minimum(r, self.config.max_range_m + w)
+        """Length of each beam's cone: past the hit by the occupied band's half width,
+        the maximum range for a beam that saw nothing (a NaN hit: the band only)."""
+        c = self.config
+        w = max(c.hit_halfwidth_m, 0.75 * res)
+        z = beams.range_m
+        r = np.where((beams.kind == KIND_HIT) & ~np.isnan(z), z, 0.0)
+        r += w
+        np.copyto(r, c.max_range_m, where=beams.kind != KIND_HIT)
+        return np.minimum(r, c.max_range_m + w, out=r)
 
-    def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
-        """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit.
-
-        The cells by beam, then by flat index (a cell once per beam). Exactly
-        :func:`mapping.ir_reference.reference_updates`, computed by :mod:`mapping.ir_cone`.
-        """
-        if len(beams) == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros(0)
-        res = grid.resolution
+    def _parts(self, beams: Beams, res: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """(half-angles, reaches, the ends of the parts of at most
+        ``max_samples_per_call`` lattice points, bounded as the rectangle k_n (2 j_n + 1))."""
         h = self.half_angles(beams.sigma_rad)
         reach = self.reach(beams, res)
-        # Grow the grid to hold every cone (its far corners lie reach / cos(h) away).
+        spacing = 0.7 * res
+        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
+        csum = np.cumsum(per)
+        if csum[-1] <= self.max_samples_per_call:
+            return h, reach, [len(beams)]
+        ends, start = [], 0
+        while start < len(beams):
+            limit = (csum[start - 1] if start else 0.0) + self.max_samples_per_call
+            start = max(int(np.searchsorted(csum, limit, side="right")), start + 1)
+            ends.append(start)
+        return h, reach, ends
+
+    def _cone_updates(
+        self, grid: OccupancyGrid, beams: Beams, h: np.ndarray, reach: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Grow the grid to hold the beams' cones, then their cells and increments."""
+        res = grid.resolution
+        # The cones' far corners lie reach / cos(h) away.
         ext = reach / np.cos(h) + 2 * res
         grid.ensure(
             float(np.min(beams.x - ext)),
@@ -189,12 +205,13 @@ class IrInverseModel:
             float(np.max(beams.x + ext)),
             float(np.max(beams.y + ext)),
         )
-        use = np.flatnonzero(reach > 0)  # a cone of no length has no lattice point
-        if len(use) < len(beams):
-            beams = Beams(*(getattr(beams, n)[use] for n in _FIELDS))
-            h, reach = h[use], reach[use]
-            if len(use) == 0:
+        use = reach > 0  # a cone of no length has no lattice point
+        if not use.all():
+            keep = np.flatnonzero(use)
+            if len(keep) == 0:
                 return np.zeros(0, dtype=np.int64), np.zeros(0)
+            beams = Beams(*(getattr(beams, n)[keep] for n in _FIELDS))
+            h, reach = h[keep], reach[keep]
         x, y, angle = (
             np.ascontiguousarray(a, dtype=float) for a in (beams.x, beams.y, beams.angle)
         )
@@ -203,25 +220,44 @@ class IrInverseModel:
         cells = cone_cells(grid, x, y, angle, h, reach)
         return cell_updates(grid, self.config, (x, y), angle, hit, z, h, cells)
 
+    def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
+        """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit.
+
+        The cells by beam, then by flat index (a cell once per beam). Exactly
+        :func:`mapping.ir_reference.reference_updates`, computed by :mod:`mapping.ir_cone`
+        a bounded part at a time.
+        """
+        if len(beams) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        h, reach, ends = self._parts(beams, grid.resolution)
+        if len(ends) == 1:
+            return self._cone_updates(grid, beams, h, reach)
+        ext = reach / np.cos(h) + 2 * grid.resolution  # the whole batch first: one geometry
+        grid.ensure(
+            float(np.min(beams.x - ext)),
+            float(np.min(beams.y - ext)),
+            float(np.max(beams.x + ext)),
+            float(np.max(beams.y + ext)),
+        )
+        parts, start = [], 0
+        for stop in ends:
+            sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))
+            parts.append(self._cone_updates(grid, sub, h[start:stop], reach[start:stop]))
+            start = stop
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
     def integrate(self, grid: OccupancyGrid, beams: Beams) -> int:
-        """Apply the beams to the grid, a bounded batch at a time (each batch's updates
+        """Apply the beams to the grid, a bounded part at a time (each part's updates
         applied before the next is computed, so memory stays bounded); returns the number
         of cell updates."""
         if len(beams) == 0:
             return 0
-        res = grid.resolution
-        reach = self.reach(beams, res)
-        h = self.half_angles(beams.sigma_rad)
-        spacing = 0.7 * res
-        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
-        csum = np.cumsum(per)
+        h, reach, ends = self._parts(beams, grid.resolution)
+        if len(ends) == 1:
+            return grid.add(*self._cone_updates(grid, beams, h, reach))
         total, start = 0, 0
-        while start < len(beams):
-            limit = (csum[start - 1] if start else 0.0) + self.max_samples_per_call
-            stop = max(int(np.searchsorted(csum, limit, side="right")), start + 1)
-            sub = Beams(*(getattr(beams, n)[start:stop] for n in
-                          ("x", "y", "angle", "range_m", "kind", "sigma_rad")))  # fmt: skip
-            idx, dl = self.updates(grid, sub)
-            total += grid.add(idx, dl)
+        for stop in ends:
+            sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))
+            total += grid.add(*self._cone_updates(grid, sub, h[start:stop], reach[start:stop]))
             start = stop
         return total
