@@ -153,10 +153,10 @@ def cell_updates(
     z: np.ndarray,
     h: np.ndarray,
     cells: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-) -> tuple[np.ndarray, np.ndarray]:
-    """(flat index, log-odds increment) of the cells that change: fig. 4 on each cell
-    centre's distance, eq. 6 on its angle to the axis. ``cells``: from
-    :func:`cone_cells`. ``hit``: the beams that returned a range ``z`` (NaN for the
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(cells of each beam, flat index, log-odds increment) of the cells that change:
+    fig. 4 on each cell centre's distance, eq. 6 on its angle to the axis. ``cells``:
+    from :func:`cone_cells`. ``hit``: the beams that returned a range ``z`` (NaN for the
     others: they clear up to the maximum range)."""
     per, row, col, flat = cells
     res = grid.resolution
@@ -204,4 +204,5 @@ def cell_updates(
     np.add(0.5, d, out=p, where=occ)
     dl = np.log(p)
     dl -= np.log1p(np.negative(p, out=p), out=p)
-    return flat[sel], dl
+    ends = np.searchsorted(sel, np.cumsum(per))
+    return np.diff(ends, prepend=0), flat[sel], dl

@@ -35,6 +35,7 @@ import numpy as np
 
 from mapping.grid import OccupancyGrid
 from mapping.ir_cone import attenuate, cell_updates, cone_cells
+from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
 
 __all__ = ["attenuate"]  # eq. 6 lives with the cone cells (mapping.ir_cone)
@@ -156,6 +157,13 @@ class IrInverseModel:
 
     config: InverseModelConfig = field(default_factory=InverseModelConfig)
     max_samples_per_call: int = 400_000
+    reuse_cells: int = 0
+
+    def __post_init__(self) -> None:
+        # reuse_cells > 0: keep up to that many cell updates of the beams inserted, to
+        # insert the same beams into another grid of the same origin without computing
+        # them again (data association's reference map; mapping.ir_memo).
+        self._memo = UpdateMemo(self.reuse_cells) if self.reuse_cells > 0 else None
 
     def half_angles(self, sigma_rad: np.ndarray) -> np.ndarray:
         c = self.config
@@ -217,8 +225,17 @@ class IrInverseModel:
         )
         hit = beams.kind == KIND_HIT
         z = np.where(hit, beams.range_m, np.nan)
-        cells = cone_cells(grid, x, y, angle, h, reach)
-        return cell_updates(grid, self.config, (x, y), angle, hit, z, h, cells)
+
+        def compute(i: np.ndarray | slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            cells = cone_cells(grid, x[i], y[i], angle[i], h[i], reach[i])
+            return cell_updates(
+                grid, self.config, (x[i], y[i]), angle[i], hit[i], z[i], h[i], cells
+            )
+
+        if self._memo is None:
+            return compute(slice(None))[1:]
+        rows = np.column_stack([x, y, angle, beams.range_m, beams.kind, beams.sigma_rad])
+        return self._memo.updates(grid, rows, compute)
 
     def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
         """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit.

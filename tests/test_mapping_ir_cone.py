@@ -141,3 +141,47 @@ def test_exact_wrap_equals_numpy_mod_wrap():
             up, down = np.nextafter(up, np.inf), np.nextafter(down, -np.inf)
     for a in (rng.uniform(-30, 30, 20000), rng.uniform(-7, 7, 20000), np.array(edges)):
         np.testing.assert_array_equal(_wrap_abs(a), np.abs(wrap_angles(a)))
+
+
+def _scan_beams(rng: np.random.Generator, n_scans: int) -> list[Beams]:
+    return [_random_beams(rng, 6, spread_m=1.5) for _ in range(n_scans)]
+
+
+def test_reused_updates_give_the_same_second_grid_and_are_forgotten_once_used():
+    """A scan into grid A, later into grid B (the association's map and reference map):
+    with the memo B is bit for bit what B is without it, and the memo empties as B
+    catches up."""
+    rng = np.random.default_rng(21)
+    scans = _scan_beams(rng, 12)
+    plain, memo = IrInverseModel(), IrInverseModel(reuse_cells=10**7)
+    grids = {m: (OccupancyGrid(), OccupancyGrid()) for m in ("plain", "memo")}
+    for i, beams in enumerate(scans):
+        for name, model in (("plain", plain), ("memo", memo)):
+            a, b = grids[name]
+            model.integrate(a, beams)
+            if i >= 3:  # B lags three scans, then takes two at once
+                model.integrate(b, Beams.concat(scans[i - 3 : i - 1]) if i % 2 else scans[i - 3])
+    for x, y in zip(grids["plain"], grids["memo"], strict=True):
+        assert x.origin == y.origin
+        np.testing.assert_array_equal(x.logodds.view(np.uint32), y.logodds.view(np.uint32))
+    assert memo._memo is not None and memo._memo.hits > 0
+    assert len(memo._memo._kept) <= 3 * 6  # only the scans B has not taken yet
+
+
+def test_reuse_needs_the_same_origin_handles_another_width_and_keeps_its_bound():
+    rng = np.random.default_rng(22)
+    beams = _random_beams(rng, 6, spread_m=1.0)
+    model = IrInverseModel(reuse_cells=10**7)
+    first = OccupancyGrid(GridConfig(origin_m=(-5.0, -5.0), size_m=(10.0, 10.0)))
+    want = model.updates(first, beams)
+    wider = OccupancyGrid(GridConfig(origin_m=(-5.0, -5.0), size_m=(14.0, 10.0)))
+    got = model.updates(wider, beams)  # same origin, more columns: reused, re-indexed
+    assert model._memo is not None and model._memo.hits == 6
+    rows, cols = np.divmod(want[0], first.shape[1])
+    _same(got, (rows * wider.shape[1] + cols, want[1]))
+    moved = OccupancyGrid(GridConfig(origin_m=(-5.05, -5.0), size_m=(10.0, 10.0)))
+    _same(model.updates(moved, beams), reference_updates(model, moved.copy(), beams))
+    assert model._memo.hits == 6  # another origin: computed again
+    tiny = IrInverseModel(reuse_cells=10)
+    tiny.updates(OccupancyGrid(), beams)
+    assert tiny._memo is not None and tiny._memo.cells <= 10
