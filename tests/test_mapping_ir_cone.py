@@ -154,7 +154,8 @@ def test_reused_updates_give_the_same_second_grid_and_are_forgotten_once_used():
     rng = np.random.default_rng(21)
     scans = _scan_beams(rng, 12)
     plain, memo = IrInverseModel(), IrInverseModel(reuse_cells=10**7)
-    grids = {m: (OccupancyGrid(), OccupancyGrid()) for m in ("plain", "memo")}
+    big = GridConfig(origin_m=(-10.0, -10.0), size_m=(20.0, 20.0))  # no growth: one origin
+    grids = {m: (OccupancyGrid(big), OccupancyGrid(big)) for m in ("plain", "memo")}
     for i, beams in enumerate(scans):
         for name, model in (("plain", plain), ("memo", memo)):
             a, b = grids[name]
@@ -164,8 +165,8 @@ def test_reused_updates_give_the_same_second_grid_and_are_forgotten_once_used():
     for x, y in zip(grids["plain"], grids["memo"], strict=True):
         assert x.origin == y.origin
         np.testing.assert_array_equal(x.logodds.view(np.uint32), y.logodds.view(np.uint32))
-    assert memo._memo is not None and memo._memo.hits > 0
-    assert len(memo._memo._kept) <= 3 * 6  # only the scans B has not taken yet
+    assert memo._memo is not None and memo._memo.hits == 6 * 10  # B took scans 0..9
+    assert len(memo._memo._kept) == 2 * 6  # only the scans B has not taken yet
 
 
 def test_reuse_needs_the_same_origin_handles_another_width_and_keeps_its_bound():
