@@ -12,7 +12,10 @@ pose was re-aligned since, or a grid that grew to another origin, simply misses.
 
 Memory is bounded: at most ``max_cells`` cell updates are kept (a new beam that does not
 fit is not kept); a hit removes its entry and every older one (the reference map takes
-the scans in order, so an older entry will not be asked for again).
+the scans in order, so an older entry will not be asked for again). A map that grows
+to the left or down takes a new origin, and the reference map, growing later by its own
+steps, usually another: from then on its beams miss (the memo then holds at most
+``max_cells`` entries that are not used).
 """
 
 from __future__ import annotations
