@@ -23,7 +23,9 @@ Everything is vectorised over all beams of a call (one scan, or many scans when 
 is re-inserted): the cone of each beam is covered by a lattice of sample points with
 spacing 0.7 cells (any cell lying inside the cone receives one), the points are binned
 into cells, repeated (beam, cell) pairs are reduced to one, and each cell's update is
-computed from its exact centre geometry.
+computed from its exact centre geometry. :mod:`mapping.ir_reference` writes this lattice
+down plainly; :mod:`mapping.ir_cone` computes the same cells and increments, bit for
+bit, without sorting; :mod:`mapping.ir_memo` keeps them for a second grid when asked.
 """
 
 from __future__ import annotations
