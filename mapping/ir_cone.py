@@ -42,6 +42,19 @@ def attenuate(p: np.ndarray, alpha: np.ndarray, three_sigma: np.ndarray) -> np.n
     return np.where(p < 0.5, 0.5 - d, np.where(p > 0.5, 0.5 + d, p))
 
 
+def grow_for_cones(
+    grid: OccupancyGrid, x: np.ndarray, y: np.ndarray, h: np.ndarray, reach: np.ndarray
+) -> None:
+    """Grow the grid to hold every cone (its far corners lie reach / cos(h) away)."""
+    ext = reach / np.cos(h) + 2 * grid.resolution
+    grid.ensure(
+        float(np.min(x - ext)),
+        float(np.min(y - ext)),
+        float(np.max(x + ext)),
+        float(np.max(y + ext)),
+    )
+
+
 def _runs(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(owner of each element, first element of each run) of runs of ``counts`` elements."""
     starts = np.cumsum(counts) - counts

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
-from mapping.ir_cone import attenuate, cell_updates, cone_cells
+from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones
 from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
 
@@ -206,15 +206,7 @@ class IrInverseModel:
         self, grid: OccupancyGrid, beams: Beams, h: np.ndarray, reach: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Grow the grid to hold the beams' cones, then their cells and increments."""
-        res = grid.resolution
-        # The cones' far corners lie reach / cos(h) away.
-        ext = reach / np.cos(h) + 2 * res
-        grid.ensure(
-            float(np.min(beams.x - ext)),
-            float(np.min(beams.y - ext)),
-            float(np.max(beams.x + ext)),
-            float(np.max(beams.y + ext)),
-        )
+        grow_for_cones(grid, beams.x, beams.y, h, reach)
         use = reach > 0  # a cone of no length has no lattice point
         if not use.all():
             keep = np.flatnonzero(use)
@@ -251,13 +243,7 @@ class IrInverseModel:
         h, reach, ends = self._parts(beams, grid.resolution)
         if len(ends) == 1:
             return self._cone_updates(grid, beams, h, reach)
-        ext = reach / np.cos(h) + 2 * grid.resolution  # the whole batch first: one geometry
-        grid.ensure(
-            float(np.min(beams.x - ext)),
-            float(np.min(beams.y - ext)),
-            float(np.max(beams.x + ext)),
-            float(np.max(beams.y + ext)),
-        )
+        grow_for_cones(grid, beams.x, beams.y, h, reach)  # the whole batch first
         parts, start = [], 0
         for stop in ends:
             sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mapping.grid import OccupancyGrid
-from mapping.ir_cone import attenuate
+from mapping.ir_cone import attenuate, grow_for_cones
 from numerics.angles import wrap
 
 if TYPE_CHECKING:
@@ -44,14 +44,7 @@ def reference_updates(
     res = grid.resolution
     h = model.half_angles(beams.sigma_rad)
     reach = model.reach(beams, res)
-    # Grow the grid to hold every cone (its far corners lie reach / cos(h) away).
-    ext = reach / np.cos(h) + 2 * res
-    grid.ensure(
-        float(np.min(beams.x - ext)),
-        float(np.min(beams.y - ext)),
-        float(np.max(beams.x + ext)),
-        float(np.max(beams.y + ext)),
-    )
+    grow_for_cones(grid, beams.x, beams.y, h, reach)
     spacing = 0.7 * res
     k_n = np.ceil(reach / spacing).astype(np.int64)
     j_n = np.ceil(reach * np.tan(h) / spacing).astype(np.int64) + 1
