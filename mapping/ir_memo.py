@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from mapping.grid import OccupancyGrid
 
 # (cells of each beam, their flat indices, their increments) of beams given by index.
-Compute = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+Compute = Callable[[np.ndarray | slice], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 class UpdateMemo:
@@ -59,7 +59,8 @@ class UpdateMemo:
         if len(missing) < len(keys):
             self._forget_upto(keys[max(i for i, f in enumerate(found) if f is not None)])
         if missing:
-            per, flat, dl = compute(np.array(missing))
+            every = len(missing) == len(keys)
+            per, flat, dl = compute(slice(None) if every else np.array(missing))
             ends = np.cumsum(per)
             small = np.int64 if cols * grid.shape[0] >= 2**31 else np.int32
             for i, a, b in zip(missing, ends - per, ends, strict=True):
@@ -67,7 +68,7 @@ class UpdateMemo:
                 if keys[i] not in self._kept and self.cells + (b - a) <= self.max_cells:
                     self._kept[keys[i]] = (flat[a:b].astype(small), dl[a:b].copy(), cols)
                     self.cells += int(b - a)
-            if len(missing) == len(keys):
+            if every:
                 return flat, dl
         parts = [_in_grid(f, cols) for f in found if f is not None]
         if len(parts) == 1:
