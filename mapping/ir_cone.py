@@ -12,9 +12,11 @@ at a fraction of its cost:
   beam's cone (its bounding box, found from the ends of the lattice rows);
 - marking the bitmap removes the repeated (beam, cell) pairs, and reading it back in
   order gives the cells by beam, then by flat index: the order ``np.unique`` gave;
-- the inverse model is evaluated on the cells only where it changes anything: the
-  distance first (free, occupied or behind the hit), the angles of eq. 6 only for the
-  cells in front of or at the hit.
+- each cell's distance and angle to the beam are computed once; the cells that change
+  (free before the hit, occupied at it, inside the eq. 6 cone) are picked in one pass,
+  and eq. 6's power and the log-odds are computed for those only. The wrap of the angle
+  is ``numerics.angles.wrap_angles``' ``np.mod`` done as the one add or subtract it
+  amounts to (exact: :func:`_wrap_abs`).
 
 Every step is a whole-array numpy operation over all beams of a call, so a scan of six
 beams costs a few dozen numpy calls.
