@@ -18,6 +18,13 @@ bench/out/). The LAST line printed is a JSON object with match_ratio_without_da,
 match_ratio_with_da (paper: 0.44 and 0.83), seconds, cell_updates_per_s and more.
 
     python bench/grid_mapping.py [--seed N] [--distance 70] [--resolution 0.05] [--out DIR]
+                                 [--baseline OLD_CHECKOUT [--repeat N]]
+
+The speed figures are wall time (``cell_updates_per_s``) and, because a shared machine's
+load moves wall time, CPU time of this process (``cell_updates_per_cpu_s``).
+``--baseline OLD_CHECKOUT`` runs this script on that checkout's packages in a subprocess
+(bench/baseline.py) alternating with our own runs, and prints both side by side: the
+maps must agree and the ratios are the speed-up.
 """
 
 from __future__ import annotations
@@ -25,15 +32,22 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+# The code under test: this checkout's, or (HILNAV_BENCH_CODE, set by --baseline) another's.
+if __package__ in (None, "") or "HILNAV_BENCH_CODE" in os.environ:
+    sys.path.insert(
+        0, os.environ.get("HILNAV_BENCH_CODE", str(Path(__file__).resolve().parents[1]))
+    )
 
 from drivers.sharp import STATUS_NAMES, SharpCurve
 from fakes.world import DiffDriveRobot, GyroErrorModel, IrErrorModel, SlipModel, World
@@ -47,6 +61,7 @@ from mapping.quality import compare, true_map
 from msgs import HeadingEstimate, IrScan, Pose2D, wrap_angle
 
 DEG = math.pi / 180.0
+T = TypeVar("T")
 
 # Six IR sensors, front and sides (x, y, yaw on the robot): two forward, two diagonal,
 # two sideways, on the rim of the Pioneer's ~0.2 m body.
@@ -323,25 +338,22 @@ def _figure(maps: dict[str, OccupancyGrid], truth: np.ndarray, path: Path, run: 
     plt.close(fig)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--distance", type=float, default=70.0, help="metres of driving")
-    ap.add_argument("--resolution", type=float, default=0.05, help="cell size, m")
-    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "out")
-    args = ap.parse_args(argv)
+def _timed(fn: Callable[..., T], *args: Any, **kw: Any) -> tuple[T, float, float]:
+    """(result, wall seconds, CPU seconds of this process)."""
+    w, c = time.perf_counter(), time.process_time()
+    out = fn(*args, **kw)
+    return out, time.perf_counter() - w, time.process_time() - c
+
+
+def measure(args: argparse.Namespace) -> dict:
+    """One run of the experiment: the result object the bench prints."""
     from fakes.world import load
 
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    run = simulate(distance_m=args.distance, seed=args.seed)
-    t_sim = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    plain = map_without_da(run, args.resolution)
-    t_plain = time.perf_counter() - t1
-    t2 = time.perf_counter()
-    da = map_with_da(run, args.resolution, seed=args.seed)
-    t_da = time.perf_counter() - t2
+    run, t_sim, _ = _timed(simulate, distance_m=args.distance, seed=args.seed)
+    plain, t_plain, c_plain = _timed(map_without_da, run, args.resolution)
+    da, t_da, c_da = _timed(map_with_da, run, args.resolution, seed=args.seed)
     plan = load("paper_room")
     ideal = map_without_da(run, args.resolution, use_truth=True)
     q_plain = compare(plain, plan)
@@ -354,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     _figure({"without DA": plain, "with DA": da.grid, "true poses": ideal}, truth,
             args.out / "grid_mapping.png", run)  # fmt: skip
     outcomes = da.outcome_counts()
-    result = {
+    return {
         "bench": "grid_mapping",
         "match_ratio_without_da": round(q_plain.match_ratio, 4),
         "match_ratio_with_da": round(q_da.match_ratio, 4),
@@ -380,10 +392,77 @@ def main(argv: list[str] | None = None) -> int:
         "seconds_simulation": round(t_sim, 2),
         "seconds_map_without_da": round(t_plain, 2),
         "seconds_map_with_da": round(t_da, 2),
+        "cpu_seconds_map_without_da": round(c_plain, 2),
+        "cpu_seconds_map_with_da": round(c_da, 2),
+        "cell_updates": plain.updates,
+        "cell_updates_with_da": da.cell_updates,
         "cell_updates_per_s": round(plain.updates / t_plain),
         "cell_updates_per_s_with_da": round(da.cell_updates / t_da),
+        "cell_updates_per_cpu_s": round(plain.updates / c_plain),
+        "cell_updates_per_cpu_s_with_da": round(da.cell_updates / c_da),
+        # Digests of the maps, to see that two codes made the same ones.
+        "map_crc_without_da": _crc(plain),
+        "map_crc_with_da": _crc(da.grid),
+        "load": os.getloadavg()[0],
         "out": str(args.out),
     }
+
+
+def _crc(grid: OccupancyGrid) -> str:
+    import zlib
+
+    geo = np.array([*grid.origin, *grid.shape], dtype=np.float64).tobytes()
+    return f"{zlib.crc32(geo + np.ascontiguousarray(grid.logodds).tobytes()):08x}"
+
+
+RATES = ["cell_updates_per_s", "cell_updates_per_s_with_da", "cell_updates_per_cpu_s",
+         "cell_updates_per_cpu_s_with_da"]  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--distance", type=float, default=70.0, help="metres of driving")
+    ap.add_argument("--resolution", type=float, default=0.05, help="cell size, m")
+    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "out")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="an older checkout of hilnav, measured by this script in a subprocess "
+                    "between our runs (bench/baseline.py)")  # fmt: skip
+    ap.add_argument("--repeat", type=int, default=1, help="alternations with --baseline")
+    args = ap.parse_args(argv)
+    if args.baseline is None:
+        result = measure(args)
+        print(f"{'':34}{'without DA':>14}{'with DA':>14}")
+        for k in ("match_ratio", "cell_updates_per_s", "cell_updates_per_cpu_s"):
+            print(f"{k:34}{result[k.replace('ratio', 'ratio_without_da') if 'ratio' in k else k]:>14}"
+                  f"{result[k + '_with_da']:>14}")  # fmt: skip
+        print(json.dumps(result))
+        return 0
+    from bench.baseline import merge_best, run_baseline
+
+    best: dict[str, float] = {}
+    theirs: dict[str, float] = {}
+    ours_last: dict = {}
+    old_last: dict = {}
+    for _ in range(args.repeat):
+        with tempfile.TemporaryDirectory() as tmp:
+            old_last = run_baseline(args.baseline, str(Path(__file__).resolve()),
+                                    f"--seed={args.seed}", f"--distance={args.distance}",
+                                    f"--resolution={args.resolution}", f"--out={tmp}")  # fmt: skip
+        merge_best(theirs, old_last, RATES)
+        ours_last = measure(args)
+        merge_best(best, ours_last, RATES)
+    same = all(ours_last[k] == old_last[k] for k in ("map_crc_without_da", "map_crc_with_da"))
+    print(f"{'best of ' + str(args.repeat):34}{'baseline':>14}{'this':>14}{'ratio':>8}")
+    for k in RATES:
+        print(f"{k:34}{theirs[k]:>14.0f}{best[k]:>14.0f}{best[k] / theirs[k]:>8.2f}")
+    print(f"same maps (bit for bit): {same}")
+    result = dict(ours_last)
+    result.update({k: round(v) for k, v in best.items()})
+    result["baseline"] = {k: round(v) for k, v in theirs.items()}
+    result["baseline_checkout"] = str(args.baseline)
+    result["speedup"] = {k: round(best[k] / theirs[k], 2) for k in RATES}
+    result["same_maps_as_baseline"] = same
     print(json.dumps(result))
     return 0
 

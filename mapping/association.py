@@ -90,7 +90,9 @@ class SampleAssociation:
         if self.mounts.ndim != 2 or self.mounts.shape[1] != 3:
             raise ValueError("IR mounts must be (K, 3): x, y, yaw of each sensor on the robot")
         self.config = config or AssociationConfig()
-        self.model = IrInverseModel(inverse or InverseModelConfig())
+        # Each scan goes into the map, then into the reference map: the second time its
+        # cell updates are taken from the first (mapping.ir_memo; at most 1 M, 12 MB).
+        self.model = IrInverseModel(inverse or InverseModelConfig(), reuse_cells=1_000_000)
         self.grid = OccupancyGrid(grid_config)
         self._ref = self.grid.copy()
         self._ref_upto = 0

@@ -153,6 +153,7 @@ class FieldBeamModel:
         self.known: np.ndarray | None = None
         self.origin = (0.0, 0.0)
         self.res = 1.0
+        self._flat: tuple[np.ndarray, np.ndarray] | None = None
 
     def set_map(
         self, grid: OccupancyGrid, box: tuple[float, float, float, float] | None = None
@@ -173,6 +174,7 @@ class FieldBeamModel:
             c0, c1 = max(0, int(ca)), min(cols, int(cb) + 1)
             lo = lo[r0 : max(r1, r0 + 1), c0 : max(c1, c0 + 1)]
         occ = lo > self.l_occ
+        self._flat = None
         self.known = lo != 0.0
         self.origin = (grid.origin[0] + c0 * self.res, grid.origin[1] + r0 * self.res)
         if not occ.any():
@@ -185,14 +187,16 @@ class FieldBeamModel:
         whether the cell there was ever observed."""
         assert self.dist is not None and self.known is not None
         rows, cols = self.dist.shape
-        c = np.floor((x - self.origin[0]) / self.res).astype(np.int64)
-        r = np.floor((y - self.origin[1]) / self.res).astype(np.int64)
+        if self._flat is None:  # the field and the known cells, flat, and one cell past
+            self._flat = (np.append(self.dist.ravel(), np.float32(np.inf)),
+                          np.append(self.known.ravel(), False))  # fmt: skip
+        c = np.floor((x - self.origin[0]) / self.res)
+        r = np.floor((y - self.origin[1]) / self.res)
         inside = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
-        out = np.full(x.shape, np.inf, dtype=np.float32)
-        known = np.zeros(x.shape, dtype=bool)
-        out[inside] = self.dist[r[inside], c[inside]]
-        known[inside] = self.known[r[inside], c[inside]]
-        return out, known
+        r *= cols
+        r += c
+        idx = np.where(inside, r, rows * cols).astype(np.intp)  # outside: the cell past
+        return self._flat[0].take(idx), self._flat[1].take(idx)
 
     def log_likelihood(
         self, poses: np.ndarray, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray

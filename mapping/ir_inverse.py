@@ -23,7 +23,9 @@ Everything is vectorised over all beams of a call (one scan, or many scans when 
 is re-inserted): the cone of each beam is covered by a lattice of sample points with
 spacing 0.7 cells (any cell lying inside the cone receives one), the points are binned
 into cells, repeated (beam, cell) pairs are reduced to one, and each cell's update is
-computed from its exact centre geometry.
+computed from its exact centre geometry. :mod:`mapping.ir_reference` writes this lattice
+down plainly; :mod:`mapping.ir_cone` computes the same cells and increments, bit for
+bit, without sorting; :mod:`mapping.ir_memo` keeps them for a second grid when asked.
 """
 
 from __future__ import annotations
@@ -34,13 +36,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
+from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones
+from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
-from numerics.angles import wrap
+
+__all__ = ["attenuate"]  # eq. 6 lives with the cone cells (mapping.ir_cone)
 
 KIND_SKIP = -1
 KIND_HIT = 0
 KIND_CLEAR = 1
 _STATUS_KIND = {"ok": KIND_HIT, "too_far": KIND_CLEAR, "no_return": KIND_CLEAR}
+_FIELDS = ("x", "y", "angle", "range_m", "kind", "sigma_rad")
 
 
 @dataclass(frozen=True)
@@ -77,14 +83,6 @@ class InverseModelConfig:
             raise ValueError(
                 "inverse model needs 0 < min_half_angle_rad <= max_half_angle_rad < pi/2"
             )
-
-
-def attenuate(p: np.ndarray, alpha: np.ndarray, three_sigma: np.ndarray) -> np.ndarray:
-    """Eq. (6): pull p towards 0.5 with the exponent 1 + |alpha / (3 sigma)|."""
-    p = np.asarray(p, dtype=float)
-    e = 1.0 + np.abs(np.asarray(alpha, dtype=float) / np.asarray(three_sigma, dtype=float))
-    d = np.abs(p - 0.5) ** e
-    return np.where(p < 0.5, 0.5 - d, np.where(p > 0.5, 0.5 + d, p))
 
 
 @dataclass
@@ -161,6 +159,13 @@ class IrInverseModel:
 
     config: InverseModelConfig = field(default_factory=InverseModelConfig)
     max_samples_per_call: int = 400_000
+    reuse_cells: int = 0
+
+    def __post_init__(self) -> None:
+        # reuse_cells > 0: keep up to that many cell updates of the beams inserted, to
+        # insert the same beams into another grid of the same origin without computing
+        # them again (data association's reference map; mapping.ir_memo).
+        self._memo = UpdateMemo(self.reuse_cells) if self.reuse_cells > 0 else None
 
     def half_angles(self, sigma_rad: np.ndarray) -> np.ndarray:
         c = self.config
@@ -170,111 +175,94 @@ class IrInverseModel:
                        c.min_half_angle_rad, c.max_half_angle_rad)  # fmt: skip
 
     def reach(self, beams: Beams, res: float) -> np.ndarray:
-        w = max(self.config.hit_halfwidth_m, 0.75 * res)
-        hit = beams.kind == KIND_HIT
-        r = np.where(hit, np.nan_to_num(beams.range_m, nan=0.0) + w, self.config.max_range_m)
-        return np.minimum(r, self.config.max_range_m + w)
-
-    def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
-        """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit."""
-        if len(beams) == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros(0)
-        res = grid.resolution
-        h = self.half_angles(beams.sigma_rad)
-        reach = self.reach(beams, res)
-        # Grow the grid to hold every cone (its far corners lie reach / cos(h) away).
-        ext = reach / np.cos(h) + 2 * res
-        grid.ensure(
-            float(np.min(beams.x - ext)),
-            float(np.min(beams.y - ext)),
-            float(np.max(beams.x + ext)),
-            float(np.max(beams.y + ext)),
-        )
-        spacing = 0.7 * res
-        k_n = np.ceil(reach / spacing).astype(np.int64)
-        j_n = np.ceil(reach * np.tan(h) / spacing).astype(np.int64) + 1
-        per = k_n * (2 * j_n + 1)
-        # Split large batches to bound memory.
-        if per.sum() > self.max_samples_per_call and len(beams) > 1:
-            idx_parts, dl_parts = [], []
-            csum = np.cumsum(per)
-            start = 0
-            while start < len(beams):
-                stop = int(
-                    np.searchsorted(csum, csum[start] - per[start] + self.max_samples_per_call)
-                )
-                stop = max(stop, start + 1)
-                sub = Beams(*(getattr(beams, n)[start:stop] for n in
-                              ("x", "y", "angle", "range_m", "kind", "sigma_rad")))  # fmt: skip
-                i, d = self.updates(grid, sub)
-                idx_parts.append(i)
-                dl_parts.append(d)
-                start = stop
-            return np.concatenate(idx_parts), np.concatenate(dl_parts)
-        total = int(per.sum())
-        beam_id = np.repeat(np.arange(len(beams)), per)
-        offsets = np.concatenate([[0], np.cumsum(per)[:-1]])
-        q = np.arange(total) - offsets[beam_id]
-        width = 2 * j_n[beam_id] + 1
-        k = q // width
-        j = q % width - j_n[beam_id]
-        t = (k + 0.5) * spacing
-        lat = j * spacing
-        keep = np.abs(lat) <= t * np.tan(h[beam_id]) + res
-        beam_id, t, lat = beam_id[keep], t[keep], lat[keep]
-        ca, sa = np.cos(beams.angle), np.sin(beams.angle)
-        px = beams.x[beam_id] + t * ca[beam_id] - lat * sa[beam_id]
-        py = beams.y[beam_id] + t * sa[beam_id] + lat * ca[beam_id]
-        row, col = grid.cell_of(px, py)
-        rows, cols = grid.shape
-        ncell = rows * cols
-        key = np.unique(beam_id.astype(np.int64) * ncell + row * cols + col)
-        b = key // ncell
-        flat = key % ncell
-        row, col = flat // cols, flat % cols
-        cx, cy = grid.centre_of(row, col)
-        vx, vy = cx - beams.x[b], cy - beams.y[b]
-        r = np.hypot(vx, vy)
-        alpha = np.abs(wrap(np.arctan2(vy, vx) - beams.angle[b]))
-        cell_radius = 0.7072 * res
-        alpha_eff = np.maximum(
-            0.0, alpha - np.arcsin(np.minimum(1.0, cell_radius / np.maximum(r, 1e-9)))
-        )
-        alpha_eff = np.where(r <= cell_radius, 0.0, alpha_eff)
-        hb = h[b]
+        """Length of each beam's cone: past the hit by the occupied band's half width,
+        the maximum range for a beam that saw nothing (a NaN hit: the band only)."""
         c = self.config
         w = max(c.hit_halfwidth_m, 0.75 * res)
-        z = beams.range_m[b]
-        hit = beams.kind[b] == KIND_HIT
-        p = np.full(r.shape, 0.5)
-        with np.errstate(invalid="ignore"):
-            p = np.where(hit & (r < z - w), c.p_free, p)
-            p = np.where(hit & (np.abs(r - z) <= w), c.p_occupied, p)
-        p = np.where(~hit & (r <= c.max_range_m), c.p_free, p)
-        sel = (alpha_eff <= hb) & (p != 0.5)
-        p = attenuate(p[sel], alpha_eff[sel], hb[sel])
-        dl = np.log(p) - np.log1p(-p)
-        return flat[sel], dl
+        z = beams.range_m
+        r = np.where((beams.kind == KIND_HIT) & ~np.isnan(z), z, 0.0)
+        r += w
+        np.copyto(r, c.max_range_m, where=beams.kind != KIND_HIT)
+        return np.minimum(r, c.max_range_m + w, out=r)
+
+    def _parts(self, beams: Beams, res: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """(half-angles, reaches, the ends of the parts of at most
+        ``max_samples_per_call`` lattice points, bounded as the rectangle k_n (2 j_n + 1))."""
+        h = self.half_angles(beams.sigma_rad)
+        reach = self.reach(beams, res)
+        spacing = 0.7 * res
+        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
+        csum = np.cumsum(per)
+        if csum[-1] <= self.max_samples_per_call:
+            return h, reach, [len(beams)]
+        ends, start = [], 0
+        while start < len(beams):
+            limit = (csum[start - 1] if start else 0.0) + self.max_samples_per_call
+            start = max(int(np.searchsorted(csum, limit, side="right")), start + 1)
+            ends.append(start)
+        return h, reach, ends
+
+    def _cone_updates(
+        self, grid: OccupancyGrid, beams: Beams, h: np.ndarray, reach: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Grow the grid to hold the beams' cones, then their cells and increments."""
+        grow_for_cones(grid, beams.x, beams.y, h, reach)
+        use = reach > 0  # a cone of no length has no lattice point
+        if not use.all():
+            keep = np.flatnonzero(use)
+            if len(keep) == 0:
+                return np.zeros(0, dtype=np.int64), np.zeros(0)
+            beams = Beams(*(getattr(beams, n)[keep] for n in _FIELDS))
+            h, reach = h[keep], reach[keep]
+        x, y, angle = (
+            np.ascontiguousarray(a, dtype=float) for a in (beams.x, beams.y, beams.angle)
+        )
+        hit = beams.kind == KIND_HIT
+        z = np.where(hit, beams.range_m, np.nan)
+
+        def compute(i: np.ndarray | slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            cells = cone_cells(grid, x[i], y[i], angle[i], h[i], reach[i])
+            return cell_updates(
+                grid, self.config, (x[i], y[i]), angle[i], hit[i], z[i], h[i], cells
+            )
+
+        if self._memo is None:
+            return compute(slice(None))[1:]
+        rows = np.column_stack([x, y, angle, beams.range_m, beams.kind, beams.sigma_rad])
+        return self._memo.updates(grid, rows, compute)
+
+    def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
+        """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit.
+
+        The cells by beam, then by flat index (a cell once per beam). Exactly
+        :func:`mapping.ir_reference.reference_updates`, computed by :mod:`mapping.ir_cone`
+        a bounded part at a time.
+        """
+        if len(beams) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        h, reach, ends = self._parts(beams, grid.resolution)
+        if len(ends) == 1:
+            return self._cone_updates(grid, beams, h, reach)
+        grow_for_cones(grid, beams.x, beams.y, h, reach)  # the whole batch first
+        parts, start = [], 0
+        for stop in ends:
+            sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))
+            parts.append(self._cone_updates(grid, sub, h[start:stop], reach[start:stop]))
+            start = stop
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
     def integrate(self, grid: OccupancyGrid, beams: Beams) -> int:
-        """Apply the beams to the grid, a bounded batch at a time (each batch's updates
+        """Apply the beams to the grid, a bounded part at a time (each part's updates
         applied before the next is computed, so memory stays bounded); returns the number
         of cell updates."""
         if len(beams) == 0:
             return 0
-        res = grid.resolution
-        reach = self.reach(beams, res)
-        h = self.half_angles(beams.sigma_rad)
-        spacing = 0.7 * res
-        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
-        csum = np.cumsum(per)
+        h, reach, ends = self._parts(beams, grid.resolution)
+        if len(ends) == 1:
+            return grid.add(*self._cone_updates(grid, beams, h, reach))
         total, start = 0, 0
-        while start < len(beams):
-            limit = (csum[start - 1] if start else 0.0) + self.max_samples_per_call
-            stop = max(int(np.searchsorted(csum, limit, side="right")), start + 1)
-            sub = Beams(*(getattr(beams, n)[start:stop] for n in
-                          ("x", "y", "angle", "range_m", "kind", "sigma_rad")))  # fmt: skip
-            idx, dl = self.updates(grid, sub)
-            total += grid.add(idx, dl)
+        for stop in ends:
+            sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))
+            total += grid.add(*self._cone_updates(grid, sub, h[start:stop], reach[start:stop]))
             start = stop
         return total
