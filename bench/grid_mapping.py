@@ -282,9 +282,14 @@ def map_with_da(
     config: AssociationConfig | None = None,
     seed: int = 0,
 ) -> SampleAssociation:
+    if config is None:
+        from hilnav.config import load_config
+        from hilnav.services import association_config
+
+        config = association_config(load_config(None))  # the daemon's
     da = SampleAssociation(
         MOUNTS,
-        config or AssociationConfig(),
+        config,
         grid_config(resolution_m),
         inverse or InverseModelConfig(),
         seed=seed,
