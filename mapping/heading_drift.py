@@ -64,11 +64,13 @@ from msgs import AssociationReport
 
 def log_evalue(x: float) -> float:
     """ln of the e-value of one scan's tempered log-likelihood ratio ``x``: theta x -
-    theta^2 x^2 / 2 with theta = 1/2. exp of it has expectation <= 1 under the null for
-    any ratio distributed symmetrically about a mean <= 0, whatever its scale (de la
-    Pena's self-normalised supermartingale), so products of them are a test
-    supermartingale (Ville: it reaches 1 / alpha with probability <= alpha); theta = 1/2
-    is the growth-optimal choice were the ratios exact (mean d^2 / 2, variance d^2)."""
+    theta^2 x^2 / 2 with theta = 1/2. For a ratio distributed symmetrically about zero
+    (a wrong branch that fits as well as the null), exp of it has expectation <= 1
+    whatever the ratio's scale (de la Pena's self-normalised supermartingale), and less
+    for a branch that fits worse (a mean below zero; for Gaussian ratios at any spread),
+    so the product over scans is a test supermartingale: it reaches 1 / alpha with
+    probability <= alpha (Ville). theta = 1/2 is the growth-optimal choice were the
+    ratios exact (mean d^2 / 2, variance d^2)."""
     return 0.5 * x - 0.125 * x * x
 
 
