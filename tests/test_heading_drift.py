@@ -14,7 +14,7 @@ from ir_drive import MOUNTS, drifted, ir_scans, truth_path
 from mapping.association import AssociationConfig, SampleAssociation
 from mapping.beam_model import BeamModel
 from mapping.grid import GridConfig, OccupancyGrid
-from mapping.heading_drift import DriftBank, drifted_step, log_evalue
+from mapping.heading_drift import Adoption, Branch, DriftBank, drifted_step, log_evalue
 from mapping.ir_inverse import IrInverseModel, scan_kinds
 from mapping.scan_records import ScanRecords
 from mapping.se2 import compose, relative
@@ -92,6 +92,29 @@ def test_every_branch_maps_the_scans_at_its_own_poses():
         np.testing.assert_allclose(b.pose, poses[-1])
     turned = sum(relative(truth[i - 1], truth[i])[2] for i in range(start, len(truth)))
     assert abs(turned) > 0.5  # the branches really differ (by 0.8 rad x their drift)
+
+
+def test_adopting_a_branch_moves_the_records_the_cloud_and_the_snapshots():
+    rec = ScanRecords(MOUNTS)
+    for i in range(6):
+        rec.append(
+            np.array([0.1 * i, 0.0, 0.0]), 0.01, np.ones(6), np.zeros(6, np.int8), 0.1 * i, i
+        )
+    old = rec.poses[-1].copy()
+    own = [np.array([0.1 * i, 0.01 * i, 0.02 * i]) for i in (3, 4, 5)]
+    b = Branch(0.01, 1.0, own[-1].copy(), OccupancyGrid(GRID), own)
+    won = Adoption(b, 3, 9.0, 8.3, 20, 100)
+    offset = np.array([0.2, -0.1, 0.05])
+    cloud = np.stack([old, compose(old, offset)])
+    snaps = [(0, 0.0, OccupancyGrid(GRID)), (4, 0.4, OccupancyGrid(GRID))]
+    moved, kept = won.rebase(rec, cloud, old, snaps, 2, 0.5)
+    np.testing.assert_allclose(moved[0], b.pose, atol=1e-12)
+    np.testing.assert_allclose(moved[1], compose(b.pose, offset), atol=1e-12)
+    np.testing.assert_allclose(np.array(rec.poses[3:]), np.array(own))
+    assert [sn[0] for sn in kept] == [0, 2]  # the snapshot at scan 4 held old poses
+    assert won.next_spacing(0.01, (-3.0, -1.5, 1.5, 3.0)) == 0.005  # a winner inside
+    assert Adoption(Branch(0.03, 3.0, b.pose, b.ref), 3, 9.0, 8.3, 1, 1).next_spacing(
+        0.01, (-3.0, -1.5, 1.5, 3.0)) == 0.01  # fmt: skip
 
 
 def test_no_branch_is_scored_before_its_map_holds_the_same_scans():
