@@ -47,7 +47,7 @@ if __package__ in (None, ""):
 from fusion.heading import HeadingFilter, HeadingParams
 from hilnav.config import load_config
 from hilnav.importers.carmen import EmulatedRun, emulate, reference_map, stream
-from hilnav.services import heading_params
+from hilnav.services import association_config, heading_params
 from mapping.association import AssociationConfig, SampleAssociation
 from mapping.carmen import load_laser_log
 from mapping.grid import GridConfig, OccupancyGrid
@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"{src}: no reference poses (a corrected log is needed)")
     m = cfg.services.mapping
     grid_cfg = GridConfig(resolution_m=m.resolution_m, origin_m=m.origin_m, size_m=m.size_m)
-    da_cfg = AssociationConfig(samples=m.samples)
+    da_cfg = association_config(cfg)
     params = heading_params(cfg)
     base = emulate(log, mounts, ir_noise_seed=0 if args.ir_noise else None)
     laser = reference_map(base, m.resolution_m, m.origin_m)

@@ -229,6 +229,16 @@ class LocalizationAdapter:
         self.cp.drop_peer(robot)
 
 
+def association_config(cfg: RobotConfig) -> AssociationConfig:
+    """The sample-based data association's parameters from the robot config: its sample
+    count, and the prior of the heading's drift per radian turned that the association
+    tests on the map (the gyro's scale sigma: the one systematic term of the heading
+    filter that no sensor on the robot reveals)."""
+    return AssociationConfig(
+        samples=cfg.services.mapping.samples, drift_sigma_per_rad=cfg.noise.gyro_scale_sigma
+    )
+
+
 class MappingAdapter:
     """IR grid mapping fed HeadingEstimate + IrScan; map output throttled by stamp."""
 
@@ -247,7 +257,7 @@ class MappingAdapter:
         if m.association:
             self.da: SampleAssociation | None = SampleAssociation(
                 self.mounts,
-                AssociationConfig(samples=m.samples),
+                association_config(cfg),
                 self.grid_config,
                 InverseModelConfig(),
                 seed=m.seed,

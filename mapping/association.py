@@ -34,22 +34,24 @@ module that holds it):
 - Bounded memory and time: a snapshot of the map is kept every ``snapshot_every_m`` of
   travel over the last ``reinsert_m``; an accepted correction is ramped in over the
   scans since the oldest of them, which are re-inserted into it (exact: no
-  "un-inserting" of clamped log-odds), so a correction never re-inserts more than about
-  ``reinsert_m`` of scans, however long ago the last one was; and the re-insertion is
-  spread over the next steps, ``reinsert_per_step`` scans at a time (the old map is
-  kept, and the new scans go into it, until the rebuilt one has caught up), so no step
-  stalls. Every scan's updates are applied as they are computed.
+  "un-inserting" of clamped log-odds), ``reinsert_per_step`` scans per step (the old
+  map is used until the rebuilt one has caught up), so no step stalls.
 - The heading sigma the scans are inserted with (eq. 6) is the filter's, but after a
-  correction only its growth since then is added to the posterior's.
-- The samples spread with their own noise model plus the growth of the heading filter's
-  variance (:mod:`mapping.pose_samples`).
+  correction only its growth since then is added to the posterior's. The samples spread
+  with their own noise plus the growth of the filter's variance
+  (:mod:`mapping.pose_samples`).
+- The input heading's systematic drift per radian turned (the gyro's scale error, which
+  no sensor on the robot reveals) is tested as hypotheses, each with its own map, on
+  the scans as they come (:mod:`mapping.heading_drift`); an adopted drift re-aligns the
+  poses since the test began and corrects every later step.
 
 Modules: :mod:`mapping.association_config` (the parameters), :mod:`mapping.scan_records`
 (the scans, the nodes and the window), :mod:`mapping.pose_samples` (the sample cloud:
 spread, weights, resampling, tempering), :mod:`mapping.beam_model` (eq. 7-8 against the
 map), :mod:`mapping.loop_correction` (the acceptance tests and the re-alignment),
-:mod:`mapping.se2` (pose algebra). This module keeps the state (estimate, cloud, maps,
-snapshots, records) and runs them scan by scan.
+:mod:`mapping.heading_drift` (the drift hypotheses), :mod:`mapping.se2` (pose algebra).
+This module keeps the state (estimate, cloud, maps, snapshots, records, the drift test)
+and runs them scan by scan.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ import numpy as np
 from mapping.association_config import AssociationConfig
 from mapping.beam_model import BeamModel, FieldBeamModel, pair_ratio
 from mapping.grid import GridConfig, OccupancyGrid
+from mapping.heading_drift import Adoption, DriftBank, drifted_step
 from mapping.ir_inverse import KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
 from mapping.loop_correction import HeldOut, check_loop, realigned_poses
 from mapping.pose_samples import spread
@@ -111,6 +114,10 @@ class SampleAssociation:
         self._pending: HeldOut | None = None
         self._sigma = 0.0
         self._rebuild: _Rebuild | None = None
+        # The input heading's drift per radian turned (learnt), and its test.
+        self._drift = 0.0
+        self._drift_spacing = self.config.drift_sigma_per_rad
+        self._bank: DriftBank | None = None
         self.reports: list[AssociationReport] = []
         self.cell_updates = 0
         self.skipped_readings = 0
@@ -133,13 +140,18 @@ class SampleAssociation:
         return [Pose2D(*map(float, self._rec.poses[i])) for i in self._rec.nodes]
 
     @property
+    def drift_per_rad(self) -> float:
+        """The input heading's drift per radian turned, as adopted (0 until a test passes)."""
+        return self._drift
+
+    @property
     def trajectory(self) -> np.ndarray:
         """(N, 3) corrected poses of every scan so far."""
         return np.array(self._rec.poses) if self._rec.poses else np.zeros((0, 3))
 
     def outcome_counts(self) -> dict[str, int]:
-        out: dict[str, int] = {"accepted": 0, "unconfirmed": 0, "confirmed": 0, "weak": 0,
-                               "worse": 0}  # fmt: skip
+        out: dict[str, int] = {"accepted": 0, "drift": 0, "unconfirmed": 0, "confirmed": 0,
+                               "weak": 0, "worse": 0}  # fmt: skip
         for r in self.reports:
             out[r.outcome] = out.get(r.outcome, 0) + 1
         return out
@@ -162,12 +174,23 @@ class SampleAssociation:
         self.skipped_readings += int((kinds == KIND_SKIP).sum())
         sigma = math.sqrt(max(self._var_base + max(var - self._var_at, 0.0), 0.0))
         self._sigma = sigma
+        if 3.0 * sigma >= cfg.lost_heading_rad:
+            self._bank = None  # a heading that is lost has more than a drift wrong with it
+        elif self._bank is None and self._rebuild is None and self._drift_spacing > 0:
+            self._bank = DriftBank(cfg, self._drift, self._drift_spacing, len(self._rec),
+                                   self._estimate, self._ref, self._ref_upto)  # fmt: skip
         self._insert(ranges, kinds, sigma, heading.stamp_ns)
         r = self._rec
         r.add_node_if_due(self._travel, cfg.node_spacing_m)
         if self._rebuild is not None:
             self._advance_rebuild()
             return None
+        if self._bank is not None:
+            keep = kinds != KIND_SKIP
+            won = self._bank.score(self._beam_model, self._ref, self._ref_upto, self._estimate,
+                                   self.mounts[keep], ranges[keep], kinds[keep], self._travel)  # fmt: skip
+            if won is not None:
+                return self._adopt(won, heading.stamp_ns)
         if self._pending is not None:
             return self._held_out(ranges, kinds, var, heading.stamp_ns)
         if self._travel - self._last_check < cfg.check_every_m:
@@ -196,7 +219,10 @@ class SampleAssociation:
             self._estimate = p_in.copy()
             self._particles = np.tile(p_in, (self.config.samples, 1))
         else:
-            rel = relative(self._prev_in, p_in)
+            rel_in = relative(self._prev_in, p_in)
+            if self._bank is not None:
+                self._bank.move(rel_in)
+            rel = drifted_step(rel_in, self._drift)
             d = float(math.hypot(rel[0], rel[1]))
             self._travel += d
             self._estimate = compose(self._estimate, rel)
@@ -217,14 +243,22 @@ class SampleAssociation:
             while len(self._snaps) > 1 and self._snaps[0][1] < self._travel - cfg.reinsert_m:
                 self._snaps.pop(0)
         r.append(self._estimate.copy(), sigma, ranges, kinds, self._travel, stamp_ns)
+        if self._bank is not None:
+            self._bank.record()
         self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1))
         upto = r.older_than(self._ref_upto, self._travel - cfg.ref_lag_m)
         # At most reinsert_per_step scans a step (after turning on the spot many scans
         # come of age at once; the reference map may lag a few steps more).
         upto = min(upto, self._ref_upto + cfg.reinsert_per_step)
+        aged = upto - self._ref_upto
         if upto > self._ref_upto:
             self.cell_updates += self.model.integrate(self._ref, r.beams(self._ref_upto, upto))
             self._ref_upto = upto
+        if self._bank is not None:
+            # The branches take what is left of the step's budget (at least one scan each).
+            k = len(self._bank.branches)
+            budget = max(cfg.reinsert_per_step - aged, k) // max(k, 1)
+            self.cell_updates += self._bank.age(r, self._ref_upto, self.model, budget)
 
     def _pair(self, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray):
         """(pose a, pose b) -> the beams' likelihood ratio of a over b in the reference
@@ -316,10 +350,29 @@ class SampleAssociation:
             r.poses[n - 1] = np.array(corrected, dtype=float)
         self._snaps = [sn for sn in self._snaps if sn[0] <= a]  # the later ones hold old poses
         self._estimate = np.array(corrected, dtype=float)
+        self._bank = None  # its null was the uncorrected branch: restarted after the rebuild
         self._rebuild = _Rebuild(a, a, snap.copy())
         self.reinserted_scans += n - a
         self._advance_rebuild()
         return n - a
+
+    def _adopt(self, won: Adoption, stamp_ns: int) -> AssociationReport:
+        """Take the drift branch that passed (:mod:`mapping.heading_drift`): its poses
+        since the bank's start, its reference map and its pose; dead-reckon with its drift
+        from now on; rebuild the map from its reference map (a few scans per step)."""
+        b, n, upto = won.branch, len(self._rec), self._ref_upto
+        old, prev = self._estimate.copy(), self._drift
+        self._particles, self._snaps = won.rebase(self._rec, self._particles, old, self._snaps,
+                                                  upto, self._travel)  # fmt: skip
+        self._estimate, self._drift = b.pose.copy(), b.drift
+        self._drift_spacing = won.next_spacing(self._drift_spacing, self.config.drift_steps)
+        self._pending, self._bank = None, None
+        self._rebuild = _Rebuild(upto, upto, b.ref)
+        self.reinserted_scans += n - won.start
+        self._advance_rebuild()
+        report = won.report(stamp_ns, prev, old, self.config.samples, n)
+        self.reports.append(report)
+        return report
 
     def _advance_rebuild(self) -> None:
         """Re-insert up to ``reinsert_per_step`` scans into the maps being rebuilt; once

@@ -12,7 +12,10 @@ tempering and the acceptance tests (``temperature``, ``max_stages``, ``mh_moves`
 :mod:`mapping.pose_samples`; the bounded re-insertion (``reinsert_m``,
 ``snapshot_every_m``, ``reinsert_per_step``) and the lost heading (``lost_heading_rad``:
 3 sigma of the heading since the last correction beyond which no check runs) in
-:mod:`mapping.association`.
+:mod:`mapping.association`; the drift hypotheses (``drift_sigma_per_rad``: the prior
+sigma of the input heading's error per radian turned, the gyro's scale sigma, 0 = no
+test; ``drift_steps``: the hypotheses in units of the current spacing) in
+:mod:`mapping.heading_drift`.
 """
 
 from __future__ import annotations
@@ -58,6 +61,8 @@ class AssociationConfig:
     reinsert_per_step: int = 10
     lost_heading_rad: float = math.pi / 2
     max_range_m: float = 5.5
+    drift_sigma_per_rad: float = 0.005
+    drift_steps: tuple[float, ...] = (-3.0, -1.5, 1.5, 3.0)
 
     def __post_init__(self) -> None:
         if self.samples < 10:
@@ -80,5 +85,10 @@ class AssociationConfig:
         if self.max_stages < 1 or self.mh_moves < 0 or not 0 < self.min_distinct <= self.samples:
             raise ValueError("association needs max_stages >= 1, mh_moves >= 0 and "
                              "0 < min_distinct <= samples")  # fmt: skip
+        if not (math.isfinite(self.drift_sigma_per_rad) and self.drift_sigma_per_rad >= 0):
+            raise ValueError("association drift_sigma_per_rad must be finite and >= 0")
+        if any(not math.isfinite(m) or m == 0 for m in self.drift_steps):
+            raise ValueError("association drift_steps must be finite and non-zero (the "
+                             "null hypothesis is the association's own branch)")  # fmt: skip
         if abs(self.a_hit + self.a_rand + self.a_max - 1.0) > 1e-6:
             raise ValueError("association a_hit + a_rand + a_max must be 1 (eq. 8 weights)")

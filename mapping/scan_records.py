@@ -58,11 +58,12 @@ class ScanRecords:
         self.travel.append(travel)
         self.stamps.append(stamp_ns)
 
-    def beams(self, start: int, stop: int) -> Beams:
-        """The usable beams of scans ``start:stop`` in the world frame."""
+    def beams(self, start: int, stop: int, poses: np.ndarray | None = None) -> Beams:
+        """The usable beams of scans ``start:stop`` in the world frame, taken at their
+        recorded poses or at ``poses`` ((stop - start, 3): another branch's)."""
         if stop <= start:
             return Beams.concat([])
-        poses = np.array(self.poses[start:stop])
+        poses = np.array(self.poses[start:stop]) if poses is None else np.asarray(poses)
         kinds = np.concatenate(self.kinds[start:stop])
         ranges = np.concatenate(self.ranges[start:stop])
         k = len(self.mounts)

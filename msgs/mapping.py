@@ -88,13 +88,16 @@ class AssociationReport:
     """What sample-based data association did at one check (ir-grid-mapping eq. 7-8).
 
     outcome: "accepted" (pose corrected, the range data of the re-insertion window
-    re-aligned and re-inserted), "unconfirmed" (a candidate correction the later scans
-    did not confirm: kept the uncorrected branch), "confirmed" (evidence agrees with the
-    uncorrected pose), "weak" (evidence too flat, or a posterior resting on too few
-    samples: the uncorrected branch is kept), "worse" (the corrected pose explains the
-    window no better than the uncorrected one: kept). ess_fraction is the effective
-    sample size over the sample count of the whole evidence on the prior cloud;
-    log_likelihood_ratio compares the corrected and uncorrected poses on the window (nats,
+    re-aligned and re-inserted), "drift" (a drift of the input heading per radian turned
+    adopted: the poses since its test began re-aligned, every later step corrected;
+    node_index -1, ess_fraction 0, log_likelihood_ratio the test's evidence),
+    "unconfirmed" (a candidate correction the later scans did not confirm: kept the
+    uncorrected branch), "confirmed" (evidence agrees with the uncorrected pose), "weak"
+    (evidence too flat, or a posterior resting on too few samples: the uncorrected branch
+    is kept), "worse" (the corrected pose explains the window no better than the
+    uncorrected one: kept). ess_fraction is the effective sample size over the sample
+    count of the whole evidence on the prior cloud; log_likelihood_ratio compares the
+    corrected and uncorrected poses on the window (nats,
     tempered); reason says why, with the held-out test's figures.
     """
 
