@@ -137,6 +137,7 @@ class DeviceLoop:
         # order: (topic, msg, receive time ns); the monotonic time of the first
         self._backlog: list[tuple[str, Any, int]] = []
         self._backlog_since = 0.0
+        self._next_tick = self._next_keep = self._last_beat = 0.0  # set by run()
         self.reads = 0  # device reads done by the loop
         self.batches = 0  # backlogs logged and published
         self.handovers = 0  # devices the loop gave to a thread (link down)
@@ -163,45 +164,55 @@ class DeviceLoop:
             self._poller.close()  # the wake pipe is closed by the owner, after the producers
 
     def _run(self) -> None:
-        poll, stop, looped, by_fd = self._poller.poll, self.stop, self._looped, self._by_fd
-        wake_fd = self.wake.rfd
-        beat_every = min(0.02, self.beat_s / 2)
-        now = next_tick = next_keep = time.monotonic()
-        last_beat = now - beat_every
+        """Turns of the loop until ``stop``; a turn that raises (a driver, the log, the bus,
+        a timer) is counted under ``loop`` and the next turn goes on: no single input may
+        stop the loop that feeds the motion watchdog's heartbeat."""
+        self._next_tick = self._next_keep = self._last_beat = time.monotonic()
+        self._last_beat -= min(0.02, self.beat_s / 2)
         try:
-            while not stop.is_set():
-                if now - last_beat >= beat_every:
-                    self.heartbeat()
-                    last_beat = now
-                due = min(next_tick, next_keep)
-                if self._backlog:
-                    due = min(due, self._backlog_since + self.batch_s)
-                # timers wait up to slack_s for a device's wake-up rather than make their own
-                timeout = min(max(0.0, due - now) + self.slack_s, self.beat_s)
-                for fd, _ in poll(timeout):
-                    if fd == wake_fd:  # a prompt queue entry (a device thread's read)
-                        self.wake.clear()
-                        if self._adopted:
-                            self._take_adopted()
-                        self.flush()
-                        continue
-                    entry = by_fd.get(fd)
-                    if entry is not None and entry[0] in looped:
-                        self._read(entry[0], entry[1])
-                now = time.monotonic()
-                if self._backlog and now - self._backlog_since >= self.batch_s:
-                    self.flush()
-                if now >= next_keep:
-                    next_keep = now + self.keepalive_s
-                    for name, (drv, _, last) in list(looped.items()):
-                        if now - last >= self.keepalive_s:
-                            self._read(name, drv)
-                if now >= next_tick:
-                    next_tick = now + self.tick_s
-                    self.flush()
-                    self.on_tick(now)
+            while not self.stop.is_set():
+                try:
+                    self._turn()
+                except Exception as exc:
+                    self.runtime.fault("loop", exc)
         finally:
             self.flush()
+
+    def _turn(self) -> None:
+        """One turn: the heartbeat, a wait for reads (bounded by the timers), the reads,
+        then the timers that are due."""
+        looped, by_fd = self._looped, self._by_fd
+        now = time.monotonic()
+        if now - self._last_beat >= min(0.02, self.beat_s / 2):
+            self.heartbeat()
+            self._last_beat = now
+        due = min(self._next_tick, self._next_keep)
+        if self._backlog:
+            due = min(due, self._backlog_since + self.batch_s)
+        # timers wait up to slack_s for a device's wake-up rather than make their own
+        timeout = min(max(0.0, due - now) + self.slack_s, self.beat_s)
+        for fd, _ in self._poller.poll(timeout):
+            if fd == self.wake.rfd:  # a prompt queue entry (a device thread's read)
+                self.wake.clear()
+                if self._adopted:
+                    self._take_adopted()
+                self.flush()
+                continue
+            entry = by_fd.get(fd)
+            if entry is not None and entry[0] in looped:
+                self._read(entry[0], entry[1])
+        now = time.monotonic()
+        if self._backlog and now - self._backlog_since >= self.batch_s:
+            self.flush()
+        if now >= self._next_keep:
+            self._next_keep = now + self.keepalive_s
+            for name, (drv, _, last) in list(looped.items()):
+                if now - last >= self.keepalive_s:
+                    self._read(name, drv)
+        if now >= self._next_tick:
+            self._next_tick = now + self.tick_s
+            self.flush()
+            self.on_tick(now)
 
     def _absorb(self) -> None:
         """Handle what the queue holds (it came before what the loop reads next)."""
@@ -220,6 +231,14 @@ class DeviceLoop:
             self.runtime.emit_later(backlog)
 
     def _read(self, name: str, drv: Any) -> None:
+        """Read one device; a read that raises is counted under ``loop``, so a device
+        that always fails cannot starve the others of the turn."""
+        try:
+            self._read_one(name, drv)
+        except Exception as exc:
+            self.runtime.fault("loop", exc)
+
+    def _read_one(self, name: str, drv: Any) -> None:
         entry = self._looped[name]
         for _ in range(64):  # bytes buffered in the driver (slcan lines): read again
             entry[2] = time.monotonic()

@@ -117,3 +117,32 @@ def test_queued_entries_are_handled_in_arrival_order_with_the_reads(rig):
     kinds = [t for t, _ in seen]
     last = len(kinds) - 1 - kinds[::-1].index("truth")
     assert "gyro" in kinds[kinds.index("truth") : last]
+
+
+def test_a_turn_that_raises_is_counted_and_the_loop_goes_on(rig):
+    """A driver that raises in the loop's read, and a timer that raises, are faults counted under
+    ``loop``: the other devices are still read and the watchdog's heartbeat goes on."""
+    d, _ = rig
+    drv = d.drivers["gps"]
+    real_fileno, real_tick = drv.fileno, d.loop.on_tick
+
+    def broken_fileno():
+        raise OSError("port in a state nobody expected")
+
+    def broken_tick(now):
+        raise RuntimeError("timer")
+
+    faults = d.stats.faults.get("loop", 0)
+    drv.fileno = broken_fileno
+    d.loop.on_tick = broken_tick
+    try:
+        n = {t: count(d, t) for t in ("odometry", "gyro", "ir")}
+        assert _wait(lambda: d.stats.faults.get("loop", 0) > faults + 3, 5.0), d.stats.faults
+        assert _wait(lambda: all(count(d, t) > n[t] + 5 for t in n), 5.0)
+        beat = d.motion.gate.stalls
+        time.sleep(0.5)
+        assert d.motion.gate.stalls == beat  # the heartbeat went on: no stall stop
+    finally:
+        drv.fileno = real_fileno
+        d.loop.on_tick = real_tick
+    assert d._loop_thread is not None and d._loop_thread.is_alive()
