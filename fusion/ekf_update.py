@@ -17,15 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from numerics import ekf
+from numerics.chi2 import chi2_ppf
 
 
 def chi2_gate(probability: float | None, dof: int) -> float:
     """Chi-square gate on the NIS for ``dof`` dimensions at ``probability`` (None: off)."""
     if probability is None:
         return math.inf
-    from scipy.stats import chi2  # scipy.stats takes a second to import
-
-    return float(chi2.ppf(probability, dof))
+    return chi2_ppf(probability, dof)
 
 
 def is_pd(m: np.ndarray) -> bool:

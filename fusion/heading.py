@@ -73,13 +73,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from fusion.alignment import Advance, AlignedInput, Deferred, GyroOdometryAlignment
 from fusion.arrival import ArrivalOrder
 from fusion.heading_params import DEG, HeadingParams
 from fusion.increments import OdometryStep
 from msgs import HeadingEstimate, Pose2D, wrap_angle
+from numerics.chi2 import chi2_ppf
 
 LOST_3SIGMA_RAD = math.pi / 2
 # State indices: the clone of theta at the start of the current interval, theta, c_d, c_t,
@@ -112,7 +112,7 @@ class HeadingFilter(AlignedInput):
         self.params = params or HeadingParams()
         self._align = GyroOdometryAlignment(self.params, arrival)
         g = self.params.gyro_gate_probability
-        self.heading_gate = math.inf if g is None else float(chi2.ppf(g, 1))
+        self.heading_gate = math.inf if g is None else chi2_ppf(g, 1)
         self._count = HeadingCounters()
         self.reset(initial or Pose2D(), 0)
 

@@ -30,7 +30,7 @@ GPS antenna's, through the lever arm and the bias states) and an absolute headin
 Gating: every measurement's squared Mahalanobis distance (NIS) nu^T S^-1 nu is compared
 with the chi-square quantile of its dimension at ``gate_probability`` (default 0.99:
 9.21 for GPS with 2 dof, 6.63 for the gyro step and the heading with 1 dof, from
-scipy.stats.chi2.ppf); beyond it the measurement is rejected and counted (gps_rejected,
+numerics.chi2); beyond it the measurement is rejected and counted (gps_rejected,
 heading_rejected). For the gyro step the verdict goes the other way: the gyro integrates
 a rate and cannot jump, the encoders can (a bad or stale SIP, a spinning wheel), so the
 encoders' heading change is the outlier and is replaced by the gyro's

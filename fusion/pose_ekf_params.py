@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from msgs import GpsFix
+from numerics.chi2 import chi2_ppf
 
 DEG = math.pi / 180.0
 
@@ -89,9 +90,7 @@ class PoseEkfParams:
         """Chi-square gate on the NIS for a measurement of ``dof`` dimensions (inf: off)."""
         if self.gate_probability is None:
             return math.inf
-        from scipy.stats import chi2  # scipy.stats takes a second to import
-
-        return float(chi2.ppf(self.gate_probability, dof))
+        return chi2_ppf(self.gate_probability, dof)
 
     @property
     def n_states(self) -> int:
