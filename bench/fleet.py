@@ -109,6 +109,10 @@ def run_fleet(
         "wall_s": round(wall, 1),
         "run_cores": res.get("cores"),
         "run_realtime_factor": res.get("realtime_factor"),
+        # the cores real time needs: the run's CPU (hosts, routers) per simulated second
+        "cpu_per_sim_s": round(res["cores"] / res["realtime_factor"], 3)
+        if res.get("realtime_factor")
+        else None,
         "box_age_p99_ms": res.get("box_age_p99_ms"),
         "max_lag_s": res.get("max_lag_s"),
         "multi_cp_containment": res.get("multi_cp_containment"),
@@ -132,16 +136,17 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="hilnav-bench-fleet-") as tmp:
         base = export_baseline(args.baseline, Path(tmp) / "old") if "old" in variants else None
         for n in counts:
-            for v in variants:
+            for i, v in enumerate(variants):
                 cwd = base if v == "old" else ROOT
                 extra = ["--no-reference"] if v == "new-bare" else []
-                out = Path(tmp) / f"{v}-{n}"
+                out = Path(tmp) / f"{v}-{n}-{i}"
                 assert cwd is not None
                 r = {"variant": v, **run_fleet(cwd, n, args.duration, extra, out)}
                 runs.append(r)
                 print(
                     f"{v:9s} {n:3d} robots: real-time factor {r['realtime_factor']:5.2f}  "
                     f"CPU {r['cpu_s']:6.1f} s  cores {r['cores']:4.2f} (run {r['run_cores']})  "
+                    f"CPU/sim s {r['cpu_per_sim_s']}  "
                     f"box age p99 {r['box_age_p99_ms']} ms  contained {r['multi_cp_containment']}"
                     f"  load {r['load_before'][0]:.1f}->{r['load_after'][0]:.1f}",
                     flush=True,

@@ -10,7 +10,10 @@ The MCAP writer (:class:`hilnav.log.writer.LogWriter`) and the live Foxglove bri
 file see the same channels, schemas and bytes.
 
 A :class:`Sink` takes the records of one message with its log and publish times; the
-daemon encodes each message once and hands the records to each of its sinks.
+daemon encodes each message once and hands the records to each of its sinks. Encoders of
+several robots in one process (a fleet host: every robot logs every peer's box) may share
+a :class:`ViewMemo`: the views of a message logged on the same topic with the same native
+bytes are made once.
 """
 
 from __future__ import annotations
@@ -75,6 +78,34 @@ class Record(NamedTuple):
 _SCHEMA_NAMES: dict[type, str] = {}
 
 
+class ViewMemo:
+    """The Foxglove views of messages of ``classes`` by (log topic, native record bytes),
+    for the encoders of one process. Only for classes whose views are a function of the
+    topic and the message alone (:func:`hilnav.log.foxglove.views_use_state` false;
+    ValueError otherwise): equal bytes, equal message, equal views. At most ``size``
+    entries (then it starts again empty)."""
+
+    def __init__(self, classes: Sequence[type], size: int = 4096) -> None:
+        stateful = [c.__name__ for c in classes if foxglove.views_use_state(c)]
+        if stateful:
+            raise ValueError(f"views of {', '.join(stateful)} depend on earlier messages")
+        self.classes = frozenset(classes)
+        self.size = size
+        self.hits = 0
+        self._views: dict[tuple[str, bytes], list[Record]] = {}
+
+    def get(self, topic: str, data: bytes) -> list[Record] | None:
+        views = self._views.get((topic, data))
+        if views is not None:
+            self.hits += 1
+        return views
+
+    def put(self, topic: str, data: bytes, views: list[Record]) -> None:
+        if len(self._views) >= self.size:
+            self._views.clear()
+        self._views[(topic, data)] = views
+
+
 class Encoder:
     """``encode(topic, msg)``: the native record and its Foxglove views (thread-safe).
 
@@ -83,9 +114,10 @@ class Encoder:
     message, NaN in a diverged filter) is counted in ``views_skipped`` and left out; the
     native record is what matters. An unencodable native message raises."""
 
-    def __init__(self, views: bool = True) -> None:
+    def __init__(self, views: bool = True, memo: ViewMemo | None = None) -> None:
         self.views = views
         self.views_skipped = 0
+        self.memo = memo  # views shared with other encoders (module docstring)
         self._state = foxglove.ViewState()
         self._lock = threading.Lock()
 
@@ -94,10 +126,20 @@ class Encoder:
         name = _SCHEMA_NAMES.get(cls)
         if name is None:
             name = _SCHEMA_NAMES[cls] = msgs.schema_name(cls)
-        out = [Record(topic, name, msgs.encode(msg), cls)]
+        data = msgs.encode(msg)
+        out = [Record(topic, name, data, cls)]
         if self.views and foxglove.may_have_views(cls):
-            with self._lock:
-                out.extend(self._views(topic, msg))
+            memo = self.memo
+            if memo is not None and cls in memo.classes:
+                views = memo.get(topic, data)
+                if views is None:
+                    with self._lock:
+                        views = self._views(topic, msg)
+                    memo.put(topic, data, views)
+                out.extend(views)
+            else:
+                with self._lock:
+                    out.extend(self._views(topic, msg))
         return out
 
     def _views(self, topic: str, msg: Any) -> list[Record]:
