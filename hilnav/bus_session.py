@@ -7,10 +7,14 @@ subscriber per key expression and ONE liveliness subscriber however many buses s
 each sample's key, sender and payload worked out once (:class:`Payload`) and handed to
 every bus that subscribed (:meth:`hilnav.bus.Bus.deliver`: its fleet check, its counters,
 its callback). A bus that subscribes to liveliness after the subscriber was declared is
-told of the tokens present then (Zenoh's ``history``, kept here). A session may be
-``deferred``: Zenoh's thread only queues each sample, and the thread that consumes the
-buses' messages hands them over (:meth:`BusSession.pump`): one short GIL hold per sample
-in Zenoh's callback thread instead of the whole fan-out.
+told of the tokens present then (Zenoh's ``history``, kept here).
+
+A session may be ``deferred`` (a fleet host): the samples wait in Zenoh's own ring
+channel, and the thread that steps the robots hands them to the buses when it looks
+(:meth:`BusSession.pump`). No Python callback runs for them, so no other thread takes the
+GIL from the stepping thread: each callback's thread did, at every sample, and the
+stepping thread then waited for the GIL back (on a loaded machine, for a time slice).
+Liveliness changes (rare) still come by callback.
 
 Why share: with a session per robot, a host of n robots in a fleet of N receives every
 peer sample n times (the router sends it to each session) and zenoh-python runs each
@@ -21,7 +25,6 @@ steps the robots: N x n wake-ups per step. One session per host: N, decoded once
 from __future__ import annotations
 
 import threading
-from collections import deque
 from typing import TYPE_CHECKING, Any
 
 import zenoh
@@ -35,6 +38,8 @@ if TYPE_CHECKING:
     from hilnav.bus import Bus
 
 LIVELINESS_KEY = "hilnav/*/alive"
+# samples a deferred subscription holds (Zenoh drops the oldest beyond: never blocks)
+INBOX = 1 << 16
 _UNSET: Any = object()
 
 
@@ -98,14 +103,14 @@ class BusSession:
     """A Zenoh session and its subscriptions (module docstring). ``close()`` undeclares
     the subscribers and closes the session."""
 
-    def __init__(self, config: Any, *, deferred: threading.Event | None = None) -> None:
+    def __init__(self, config: Any, *, deferred: bool = False) -> None:
         """``config``: a :class:`hilnav.bus.ZenohSettings` or a ``zenoh.Config``.
-        ``deferred``: the samples are only queued by Zenoh's thread (and ``deferred`` set)
-        and handed to the buses by :meth:`pump`, in the consumer's thread."""
+        ``deferred``: the samples wait in Zenoh's own channel (no Python callback) until
+        :meth:`pump`, in the consumer's thread, hands them to the buses."""
         cfg = config.to_zenoh() if hasattr(config, "to_zenoh") else config
         self.session = zenoh.open(cfg)
-        self._deferred = deferred
-        self._inbox: deque[tuple[str, zenoh.Sample]] = deque()
+        self.deferred = deferred
+        self._channels: tuple[tuple[str, Any], ...] = ()  # (key expression, subscriber)
         self._lock = threading.Lock()
         self._targets: dict[str, tuple[Target, ...]] = {}  # key expression -> buses
         self._subscribers: dict[str, Any] = {}
@@ -127,23 +132,16 @@ class BusSession:
             if declare:
                 self._subscribers[keyexpr] = None  # being declared (outside the lock)
         if declare:
-            event = self._deferred
-            if event is None:
-
-                def on_sample(sample: zenoh.Sample) -> None:
-                    self._deliver(keyexpr, sample)
-
+            if self.deferred:  # Zenoh's thread never takes the GIL for these samples
+                sub = self.session.declare_subscriber(keyexpr, zenoh.handlers.RingChannel(INBOX))
             else:
-                inbox = self._inbox
-
-                def on_sample(sample: zenoh.Sample) -> None:
-                    inbox.append((keyexpr, sample))
-                    if not event.is_set():
-                        event.set()
-
-            sub = self.session.declare_subscriber(keyexpr, on_sample)
+                sub = self.session.declare_subscriber(
+                    keyexpr, lambda sample: self._deliver(keyexpr, sample)
+                )
             with self._lock:
                 self._subscribers[keyexpr] = sub
+                if self.deferred:
+                    self._channels = (*self._channels, (keyexpr, sub))
         return Subscription(self, keyexpr, target)
 
     def _deliver(self, keyexpr: str, sample: zenoh.Sample) -> None:
@@ -153,11 +151,13 @@ class BusSession:
             b.deliver(sample, payload, cb)
 
     def pump(self) -> int:
-        """Hand the samples queued so far to the buses (``deferred``); how many."""
-        n, inbox = 0, self._inbox
-        while inbox:
-            self._deliver(*inbox.popleft())
-            n += 1
+        """Hand the samples received so far to the buses (``deferred``), each key
+        expression's in arrival order; how many."""
+        n = 0
+        for keyexpr, sub in self._channels:
+            while (sample := sub.try_recv()) is not None:
+                self._deliver(keyexpr, sample)
+                n += 1
         return n
 
     # -- liveliness --------------------------------------------------------------------------

@@ -1,5 +1,12 @@
 """A host process of ``hilnav fleet``: several robots (:class:`hilnav.fleet.robot.SimRobot`,
-each its own runtime and Zenoh session) stepped together in real time by one thread.
+each its own runtime and bus) stepped together in real time by one thread.
+
+The robots' buses share the host's ONE Zenoh session
+(:class:`hilnav.bus_session.BusSession`, deferred): one subscription per peer topic for
+all of them, each peer's sample decoded once, waiting in Zenoh's channel until the
+stepping thread looks (no Python callback thread takes the GIL from it); each robot
+keeps its own publishers, liveliness token, queryables and log. The log views of a
+peer's box, the same in every robot's log, are made once (ViewMemo).
 
 Run as ``python -m hilnav.fleet.host --scenario paper --robots N --members r1,r4 ...``
 (the fleet command starts one per share of the robots; bench/fleet_hosts.py starts them
@@ -7,7 +14,7 @@ inside network namespaces). Every host rebuilds the same scenario from the same
 arguments. Pacing: step ``s`` is due at wall time ``t0 + s * dt / rate``; a host that is
 late does not sleep, and says how late it got.
 
-Protocol with the parent on stdio: ``READY <host>`` once every member's bus is open;
+Protocol with the parent on stdio: ``READY <host>`` once the members' buses are open;
 then a bounded wait for ``GO <t0_wall>`` on stdin; the run; the members' figures in
 ``<out>/<robot>.json`` and the host's own (wall and CPU time of the run, how late it
 got) in ``<out>/host-<host>.json``; ``DONE <host>``; the liveliness tokens stay up until
@@ -37,6 +44,8 @@ from hilnav.log.encoding import ViewMemo
 from hilnav.log.foxglove import views_use_state
 from hilnav.runtime import StartError
 from hilnav.topics import PEER_TOPICS, topic_type
+
+POLL_S = 0.001  # how often a host waiting for its robots' peers looks for their boxes
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
@@ -122,7 +131,7 @@ class Host:
     def open(self) -> None:
         """The host's Zenoh session, then each robot's bus on it, log and token."""
         try:
-            self.session = BusSession(self.zenoh, deferred=self.wake)
+            self.session = BusSession(self.zenoh, deferred=True)
         except Exception as exc:  # zenoh.ZError and friends
             raise StartError(f"cannot open the Zenoh session: {zenoh_problem(exc)}") from None
         for r in self.robots:
@@ -167,9 +176,9 @@ class Host:
             remaining = deadline - time.time()
             if remaining <= 0:
                 return
-            self.wake.wait(remaining)
+            # the peers' boxes wait in the session's channel: looked at every POLL_S
+            self.wake.wait(min(remaining, POLL_S))
             self.wake.clear()
-            time.sleep(0.0005)  # let a burst of boxes in before looking again
             for r in self.robots:
                 r.pump()
 

@@ -156,10 +156,11 @@ class SimRobot:
             self.pump()
         t = self.devices.truth(s)
         truth = (t.x, t.y, t.theta)
-        x, y, th = cp.current()
-        self.multi.record([x.lo, y.lo, th.lo], [x.hi, y.hi, th.hi], truth)
+        box = cp.box()  # (its heading next to (-pi, pi]: tracks compare modulo 2 pi)
+        bx, by, bt = box.x, box.y, box.theta
+        self.multi.record((bx.lo, by.lo, bt.lo), (bx.hi, by.hi, bt.hi), truth)
         if self.reference is not None:
-            self.reference.record(truth, cp.box())
+            self.reference.record(truth, box)
         self.steps += 1
 
     def close(self) -> None:
