@@ -5,20 +5,24 @@ For each robot count (``--robots 3,10,20``) and ``--duration`` simulated seconds
 (default 20) at real time (rate 1), runs:
 
 - ``new``: ``hilnav fleet`` of this checkout: robots on the daemon's runtime, shared over
-  one host process per core, clients of one Zenoh router on loopback; with the comparison
-  localizers (the paper's EKF, single CP), as the old fleet ran them;
+  one host process per core (one Zenoh session each), clients of one Zenoh router on
+  loopback; with the comparison localizers (the paper's EKF, single CP), as the old fleet
+  ran them;
 - ``new-bare``: the same without the comparison localizers (``--no-reference``): the
   robots' own runtime only;
 - ``old``: the fleet of ``--baseline`` (default 631dff7, the last commit with one process
   per robot and a peer-to-peer mesh), exported with ``git archive`` to a temporary
-  directory; its 12-robot cap is lifted in that copy so that it can run 20.
+  directory; its 12-robot cap is lifted in that copy so that it can run 20. ``--baseline
+  main`` compares with main the same way. A variant may be named several times
+  (``new,old,new,old``): the runs alternate, side by side.
 
 Per run: the real-time factor (simulated seconds per wall second of the stepping: from
 the command's "fleet:" line, printed at the start, to its first result line), the CPU
 seconds of every process of the run (start-up included; the command's rusage with its
 children's), the cores that makes over the command's wall time, and, for the new fleet,
 its own figures over the stepping only (``run_cores``: the hosts' and router's CPU per
-wall second; the p99 age of a peer's box when handled; the worst lateness of a step).
+wall second; ``cpu_per_sim_s``: the same per simulated second, the cores real time
+needs; the p99 age of a peer's box when handled; the worst lateness of a step).
 The machine's load (``/proc/loadavg``) is read before and after each run: the machine
 is shared, so ratios measured side by side are what count. The LAST line is a JSON
 object with every run.
@@ -109,6 +113,10 @@ def run_fleet(
         "wall_s": round(wall, 1),
         "run_cores": res.get("cores"),
         "run_realtime_factor": res.get("realtime_factor"),
+        # the cores real time needs: the run's CPU (hosts, routers) per simulated second
+        "cpu_per_sim_s": round(res["cores"] / res["realtime_factor"], 3)
+        if res.get("realtime_factor")
+        else None,
         "box_age_p99_ms": res.get("box_age_p99_ms"),
         "max_lag_s": res.get("max_lag_s"),
         "multi_cp_containment": res.get("multi_cp_containment"),
@@ -132,16 +140,17 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="hilnav-bench-fleet-") as tmp:
         base = export_baseline(args.baseline, Path(tmp) / "old") if "old" in variants else None
         for n in counts:
-            for v in variants:
+            for i, v in enumerate(variants):
                 cwd = base if v == "old" else ROOT
                 extra = ["--no-reference"] if v == "new-bare" else []
-                out = Path(tmp) / f"{v}-{n}"
+                out = Path(tmp) / f"{v}-{n}-{i}"
                 assert cwd is not None
                 r = {"variant": v, **run_fleet(cwd, n, args.duration, extra, out)}
                 runs.append(r)
                 print(
                     f"{v:9s} {n:3d} robots: real-time factor {r['realtime_factor']:5.2f}  "
                     f"CPU {r['cpu_s']:6.1f} s  cores {r['cores']:4.2f} (run {r['run_cores']})  "
+                    f"CPU/sim s {r['cpu_per_sim_s']}  "
                     f"box age p99 {r['box_age_p99_ms']} ms  contained {r['multi_cp_containment']}"
                     f"  load {r['load_before'][0]:.1f}->{r['load_after'][0]:.1f}",
                     flush=True,

@@ -10,8 +10,8 @@ the root namespace):
     hnf-ra, hnf-rb    router A (10.77.0.1) and router B (10.77.0.2): ``hilnav router``,
                       B connected to A
     hnf-h1 .. hnf-h4  the hosts (10.77.0.11 ..): ``hilnav.fleet.host`` processes, their
-                      robots shared round-robin, each robot a Zenoh client of
-                      [A, B] listening nowhere
+                      robots shared round-robin, each host's one Zenoh session (its
+                      robots') a client of [A, B] listening nowhere
 
 The robots run the paper's scenario on the daemon's runtime (cooperative CP), in real
 time. At ``--kill-at`` seconds router A is SIGKILLed; the clients go over to B. The

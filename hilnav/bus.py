@@ -5,7 +5,9 @@ Keys are ``hilnav/<robot>/<topic>``, payloads the JSON of
 :class:`Bus` publishes carries its own robot name as the Zenoh attachment (or that of the
 robot it speaks for: ``hilnav play`` replays a log's robots), so receivers know who sent it.
 
-One :class:`Bus` owns one Zenoh session opened from :class:`ZenohSettings`: peer mode (or
+A :class:`Bus` opens its Zenoh session from :class:`ZenohSettings`, or shares the
+process's with other robots' buses (:class:`hilnav.bus_session.BusSession`: the robots of
+a fleet host; subscriptions are the session's, each sample decoded once): peer mode (or
 client mode, reaching the others through Zenoh routers: ``hilnav router``),
 explicit ``listen``/``connect`` endpoints (``tcp/127.0.0.1:PORT``), multicast scouting OFF
 unless switched on, optionally a native Zenoh JSON5 file as the base, plus Zenoh's own
@@ -31,6 +33,7 @@ from typing import Any
 import zenoh
 
 import msgs
+from hilnav.bus_session import BusSession, Payload
 from hilnav.topics import EXPRESS, QUERIES, TOPICS, topic_type
 from msgs import GroundTruth, PoseBox
 
@@ -172,17 +175,22 @@ class Bus:
         robot: str,
         zenoh_cfg: ZenohSettings | zenoh.Config | None = None,
         fleet: Iterable[str] | None = None,
+        *,
+        shared: BusSession | None = None,
     ) -> None:
+        """``shared``: the process's session, which other robots' buses use too (then
+        ``zenoh_cfg`` is not used; its owner closes it); else a session of its own."""
         self.robot = check_name(robot)
         self.fleet: frozenset[str] | None = None
         if fleet is not None:
             self.fleet = frozenset(check_name(r, "fleet member") for r in fleet) | {robot}
         self.stats = BusStats()
         self._lock = threading.Lock()
-        cfg = zenoh_cfg if zenoh_cfg is not None else ZenohSettings()
-        if isinstance(cfg, ZenohSettings):
-            cfg = cfg.to_zenoh()
-        self.session = zenoh.open(cfg)
+        self._own = shared is None
+        self.zsession = shared or BusSession(
+            zenoh_cfg if zenoh_cfg is not None else ZenohSettings()
+        )
+        self.session = self.zsession.session
         self._attachment = robot.encode()
         self._publishers: dict[tuple[str, str], Any] = {}
         self._declared: list[Any] = []
@@ -253,42 +261,41 @@ class Bus:
         return self._declare_subscriber(key("*", "**"), callback)
 
     def _declare_subscriber(self, keyexpr: str, callback: Callable[[str, str, Any], None]) -> Any:
-        def on_sample(sample: zenoh.Sample) -> None:
-            try:
-                deliver(sample)
-            except Exception as exc:
-                self._count("malformed", f"{sample.key_expr}: {exc!r}")
+        sub = self.zsession.subscribe(keyexpr, self, callback)
+        self._declared.append(sub)
+        return sub
 
-        def deliver(sample: zenoh.Sample) -> None:
-            parts = str(sample.key_expr).split("/")
-            src, topic = (parts[1], "/".join(parts[2:])) if len(parts) > 2 else ("", "")
-            cls = topic_type(topic)
-            if cls is None:
+    def deliver(
+        self, sample: zenoh.Sample, payload: Payload, callback: Callable[[str, str, Any], None]
+    ) -> None:
+        """``callback(robot, topic, msg)`` if the sample is a valid message of the fleet
+        (counted in :attr:`stats` either way); ``payload`` decodes it at most once for
+        every bus of the session."""
+        try:
+            head = payload.head()
+            if head is None:
                 return
-            att = sample.attachment
-            sender = att.to_bytes().decode("utf-8", "replace") if att is not None else ""
+            src, topic, sender = head
             if not src or not self.allowed(src) or not sender or not self.allowed(sender):
                 self._count("foreign", f"{sample.key_expr} from {sender or '?'}: not in fleet")
                 return
-            try:
-                msg = msgs.decode(cls, sample.payload.to_bytes())
-            except msgs.DecodeError as exc:
-                self._count("malformed", f"{sample.key_expr}: {exc}")
-                return
-            claimed = getattr(msg, "robot", None)
-            if isinstance(msg, PoseBox | GroundTruth) and claimed != src:
-                self._count("foreign", f"{sample.key_expr}: message claims robot {claimed!r}")
-                return
-            with self._lock:
-                self.stats.received += 1
-            try:
-                callback(src, topic, msg)
-            except Exception as exc:
-                self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
-
-        sub = self.session.declare_subscriber(keyexpr, on_sample)
-        self._declared.append(sub)
-        return sub
+            msg = payload.msg()
+        except msgs.DecodeError as exc:
+            self._count("malformed", f"{sample.key_expr}: {exc}")
+            return
+        except Exception as exc:
+            self._count("malformed", f"{sample.key_expr}: {exc!r}")
+            return
+        claimed = getattr(msg, "robot", None)
+        if isinstance(msg, PoseBox | GroundTruth) and claimed != src:
+            self._count("foreign", f"{sample.key_expr}: message claims robot {claimed!r}")
+            return
+        with self._lock:
+            self.stats.received += 1
+        try:
+            callback(src, topic, msg)
+        except Exception as exc:
+            self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
 
     # -- liveliness ----------------------------------------------------------------------
     def declare_alive(self) -> None:
@@ -299,25 +306,23 @@ class Bus:
     def on_liveliness(self, callback: Callable[[str, bool], None]) -> Any:
         """``callback(robot, alive)`` for fleet robots appearing (also those already alive)
         and disappearing."""
-
-        def on_sample(sample: zenoh.Sample) -> None:
-            parts = str(sample.key_expr).split("/")
-            if len(parts) != 3 or parts[2] != "alive":
-                self._count("malformed", f"{sample.key_expr}: not a liveliness key")
-                return
-            if not self.allowed(parts[1]):
-                self._count("foreign", f"{sample.key_expr}: not in fleet")
-                return
-            try:
-                callback(parts[1], sample.kind == zenoh.SampleKind.PUT)
-            except Exception as exc:
-                self._count("callback_errors", f"{sample.key_expr}: callback: {exc!r}")
-
-        sub = self.session.liveliness().declare_subscriber(
-            key("*", "alive"), on_sample, history=True
-        )
+        sub = self.zsession.on_liveliness(self, callback)
         self._declared.append(sub)
         return sub
+
+    def liveliness(self, keyexpr: str, alive: bool, callback: Callable[[str, bool], None]) -> None:
+        """A token of ``keyexpr`` appeared or went: ``callback`` if it is a fleet robot's."""
+        parts = keyexpr.split("/")
+        if len(parts) != 3 or parts[2] != "alive":
+            self._count("malformed", f"{keyexpr}: not a liveliness key")
+            return
+        if not self.allowed(parts[1]):
+            self._count("foreign", f"{keyexpr}: not in fleet")
+            return
+        try:
+            callback(parts[1], alive)
+        except Exception as exc:
+            self._count("callback_errors", f"{keyexpr}: callback: {exc!r}")
 
     # -- queries ------------------------------------------------------------------------
     def queryable(self, name: str, handler: Callable[[], Any]) -> Any:
@@ -376,7 +381,8 @@ class Bus:
         self._token = None
         self._declared.clear()
         self._publishers.clear()
-        self.session.close()
+        if self._own:  # a shared session is closed by its owner
+            self.zsession.close()
 
     def __enter__(self) -> Bus:
         return self

@@ -10,12 +10,12 @@ The daemon (``hilnav run``) and every robot of ``hilnav fleet`` are a
   any, hands its outputs back here), or another pipeline with its interface (``pipeline``:
   called as ``Pipeline`` is; a fleet robot replaying a data set's robot); a pipeline's
   ``shared_outputs`` are published and taken from the peers beside the pose boxes;
-- ONE queue (a ``queue.SimpleQueue``: put and get in C; its bound checked on its size):
-  :meth:`put` one message, :meth:`put_read` the items of one device read (its raw bytes,
-  then its messages) as ONE entry, from any thread (device readers, Zenoh's callbacks),
-  taken in arrival order by one consumer (:meth:`next` or :meth:`take_queued`, then
-  :meth:`handle`; or :meth:`drain`); ``wake.set()`` on every put but of the ``lazy`` topics;
-- the :class:`hilnav.bus.Bus` (``[zenoh]``), the fleet's pose boxes and liveliness
+- ONE queue (:class:`hilnav.runtime_queue.RuntimeQueue`, its base class): :meth:`put` one
+  message, :meth:`put_read` the items of one device read as ONE entry, from any thread
+  (device readers, Zenoh's callbacks), taken in arrival order by one consumer
+  (:meth:`next` or :meth:`take_queued`, then :meth:`handle`; or :meth:`drain`);
+- the :class:`hilnav.bus.Bus` (``[zenoh]``; or on the Zenoh session of the process's
+  robots: a fleet host), the fleet's pose boxes and liveliness
   tokens (:meth:`declare_peers`) and the queryables ``pose``, ``map``, ``info``;
 - the :class:`hilnav.peers.PeerTable` (a peer is dropped when its token goes or its
   boxes stop for ``peer_timeout_s``; every admission and drop is kept in
@@ -35,50 +35,30 @@ output: when its input was). :meth:`open_bus` lowers the process's GIL switch in
 
 from __future__ import annotations
 
-import queue
 import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from hilnav.bus import Bus, ZenohSettings, zenoh_problem
+from hilnav.bus_session import BusSession
 from hilnav.config import RobotConfig
-from hilnav.log.encoding import stamp_of
+from hilnav.log.encoding import ViewMemo, stamp_of
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
+from hilnav.runtime_queue import Item, RuntimeQueue, RuntimeStats
 from hilnav.sinks import Sink, Sinks, default_log_path, open_run_log
 from hilnav.topics import PEER_TOPICS, PUBLISHED, log_topic
 from msgs import DaemonStatus
 
+__all__ = ["Item", "PeerEvent", "RobotRuntime", "RuntimeStats", "StartError"]
+
 
 class StartError(RuntimeError):
     """The runtime cannot start (Zenoh, the log directory): the message says why."""
-
-
-@dataclass(slots=True)
-class Item:
-    """One queued message: ``peer`` is set for another robot's (its topic "" for a
-    liveliness change, ``msg`` then True/False)."""
-
-    topic: str
-    msg: Any
-    recv_ns: int
-    peer: str = ""
-
-
-@dataclass
-class RuntimeStats:
-    """What the runtime did (read by the bench and the tests)."""
-
-    processed: int = 0
-    published: int = 0
-    logged: int = 0  # taken by every sink (the log, the live view)
-    dropped: int = 0
-    by_topic: dict[str, int] = field(default_factory=dict)
-    faults: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -91,7 +71,7 @@ class PeerEvent:
     why: str
 
 
-class RobotRuntime:
+class RobotRuntime(RuntimeQueue):
     """One robot's services, peers, bus and sinks behind one queue (module docstring)."""
 
     # How long a thread holding the GIL keeps it while another waits (Python's default is
@@ -109,15 +89,15 @@ class RobotRuntime:
         prog: str = "hilnav run",
         wake: threading.Event | None = None,
         pipeline: Callable[..., Any] = Pipeline,
+        memo: ViewMemo | None = None,
     ) -> None:
+        """``memo``: the log's views shared with other robots' runtimes in this process (a
+        fleet host: :class:`hilnav.log.encoding.ViewMemo`)."""
         self.cfg = cfg
         self.robot = cfg.name
         self.zenoh = zenoh or cfg.zenoh.settings()
         self.prog = prog
-        self.wake = wake  # set on every put (a consumer serving several runtimes waits on it)
-        # topics whose put() does not set ``wake`` (the consumer takes them at its next turn)
-        self.lazy: frozenset[str] = frozenset()
-        self.stats = RuntimeStats()
+        super().__init__(queue_size, wake)
         self.errors: list[str] = []
         self._fault_kinds: set[tuple[str, str]] = set()
         self.pipeline = pipeline(
@@ -129,24 +109,22 @@ class RobotRuntime:
         self._published = PUBLISHED | frozenset(shared)
         self.peers = PeerTable(cfg.services.localization.peer_timeout_s)
         self.peer_events: list[PeerEvent] = []
-        # SimpleQueue: put and get in C, no Python-level condition per message; the bound
-        # (messages dropped beyond it) is checked on its size
-        self._q: queue.SimpleQueue[Item | list[Item]] = queue.SimpleQueue()
-        self._queue_size = queue_size
         self._publishing = True  # the publish flag of the item being handled
         self._log_topics: dict[str, str] = {}  # topic -> /<robot>/<topic>
         self.bus: Bus | None = None
         self.log: Any = None
         self.log_path: Path | None = None
-        self.sinks = Sinks(sinks or {}, self.fault)  # + "log" when the log opens
+        self.sinks = Sinks(sinks or {}, self.fault, memo)  # + "log" when the log opens
         self.closing = threading.Event()  # set: outputs are logged, no longer published
         self._closed = False
 
     # -- opening ------------------------------------------------------------------------------
-    def open_bus(self) -> Bus:
+    def open_bus(self, shared: BusSession | None = None) -> Bus:
+        """The robot's bus on a Zenoh session of its own (``[zenoh]``), or on ``shared``,
+        the session of the process's robots (a fleet host)."""
         sys.setswitchinterval(min(sys.getswitchinterval(), self.SWITCH_INTERVAL_S))
         try:
-            self.bus = Bus(self.robot, self.zenoh, fleet=self.cfg.fleet)
+            self.bus = Bus(self.robot, self.zenoh, fleet=self.cfg.fleet, shared=shared)
         except Exception as exc:  # zenoh.ZError and friends
             raise StartError(f"cannot open the Zenoh session: {zenoh_problem(exc)}") from None
         return self.bus
@@ -200,27 +178,6 @@ class RobotRuntime:
         self.sinks.close()
 
     # -- producers (any thread) -------------------------------------------------------------------
-    def put(self, topic: str, msg: Any, peer: str = "", recv_ns: int | None = None) -> None:
-        """Queue a message (counted as dropped when the queue is full)."""
-        if self._q.qsize() >= self._queue_size:
-            self.stats.dropped += 1
-        else:
-            self._q.put(Item(topic, msg, recv_ns or time.time_ns(), peer))
-        if self.wake is not None and topic not in self.lazy:
-            self.wake.set()
-
-    def put_read(self, pending: list[tuple[str, Any]]) -> None:
-        """The ``(topic, msg)`` items of one device read (its raw bytes, then its messages)
-        as one queue entry, received at one time: one hand-over to the consumer per read
-        (all counted as dropped when the queue is full)."""
-        if self._q.qsize() >= self._queue_size:
-            self.stats.dropped += len(pending)
-        else:
-            now = time.time_ns()
-            self._q.put([Item(topic, msg, now) for topic, msg in pending])
-        if self.wake is not None:
-            self.wake.set()
-
     def _on_peer(self, robot: str, topic: str, msg: Any) -> None:
         if robot != self.robot:
             self.put(topic, msg, peer=robot)
@@ -249,14 +206,6 @@ class RobotRuntime:
             print(f"{self.prog}: {text} (counted; the loop goes on)", file=sys.stderr, flush=True)
 
     # -- the consumer (one thread) ------------------------------------------------------------------
-    def next(self, timeout_s: float) -> Item | list[Item] | None:
-        """The next queue entry (an item, or the items of one device read, for
-        :meth:`handle`), or None after ``timeout_s``."""
-        try:
-            return self._q.get(timeout=timeout_s) if timeout_s > 0 else self._q.get_nowait()
-        except queue.Empty:
-            return None
-
     def drain(self, publish: bool = True) -> int:
         """Handle everything queued now; how many items."""
         n = 0
@@ -264,21 +213,6 @@ class RobotRuntime:
             self.handle(entry, publish)
             n += len(entry) if type(entry) is list else 1
         return n
-
-    def queued(self) -> int:
-        """Entries waiting in the queue."""
-        return self._q.qsize()
-
-    def take_queued(self) -> list[Item | list[Item]]:
-        """The entries queued now, taken out of the queue in order (for :meth:`handle`)."""
-        out: list[Item | list[Item]] = []
-        get = self._q.get_nowait
-        for _ in range(self._q.qsize()):
-            try:
-                out.append(get())
-            except queue.Empty:
-                break
-        return out
 
     def handle_read(
         self,

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from hilnav.config import RobotConfig
-from hilnav.log.encoding import Encoder, Record, Sink, stamp_of
+from hilnav.log.encoding import Encoder, Record, Sink, ViewMemo, stamp_of
 from hilnav.log.writer import LogWriter
 
 
@@ -26,11 +26,15 @@ class Sinks:
     """The sinks of one daemon by place; ``write`` encodes once and writes to each."""
 
     def __init__(
-        self, sinks: dict[str, Sink], on_fault: Callable[[str, BaseException], None]
+        self,
+        sinks: dict[str, Sink],
+        on_fault: Callable[[str, BaseException], None],
+        memo: ViewMemo | None = None,
     ) -> None:
+        """``memo``: views shared with other robots' sinks in this process (a fleet host)."""
         self.sinks = dict(sinks)
         self._on_fault = on_fault
-        self._encoder = Encoder()
+        self._encoder = Encoder(memo=memo)
 
     def __bool__(self) -> bool:
         return bool(self.sinks)

@@ -3,8 +3,9 @@ each the daemon's runtime (:class:`hilnav.runtime.RobotRuntime`), meeting throug
 routers.
 
 The robots are shared out over ``--hosts`` processes (:mod:`hilnav.fleet.host`; default
-one per core), each robot with its own Zenoh session in client mode, connected only to
-the routers: ``--routers K`` ``hilnav router`` processes started on loopback (each
+one per core: a host steps its robots in one thread, so more hosts than cores only
+compete for them), each host with one Zenoh session in client mode for its robots,
+connected only to the routers: ``--routers K`` ``hilnav router`` processes started on loopback (each
 connected to the ones before), or the routers given by ``--connect`` or by the base
 config's ``[zenoh] connect`` (then none is started). Each robot runs the scenario's
 devices through its runtime (CP localization with the peers' boxes and its range-bearing

@@ -1,5 +1,12 @@
 """A host process of ``hilnav fleet``: several robots (:class:`hilnav.fleet.robot.SimRobot`,
-each its own runtime and Zenoh session) stepped together in real time by one thread.
+each its own runtime and bus) stepped together in real time by one thread.
+
+The robots' buses share the host's ONE Zenoh session
+(:class:`hilnav.bus_session.BusSession`, deferred): one subscription per peer topic for
+all of them, each peer's sample decoded once, waiting in Zenoh's channel until the
+stepping thread looks (no Python callback thread takes the GIL from it); each robot
+keeps its own publishers, liveliness token, queryables and log. The log views of a
+peer's box, the same in every robot's log, are made once (ViewMemo).
 
 Run as ``python -m hilnav.fleet.host --scenario paper --robots N --members r1,r4 ...``
 (the fleet command starts one per share of the robots; bench/fleet_hosts.py starts them
@@ -7,18 +14,20 @@ inside network namespaces). Every host rebuilds the same scenario from the same
 arguments. Pacing: step ``s`` is due at wall time ``t0 + s * dt / rate``; a host that is
 late does not sleep, and says how late it got.
 
-Protocol with the parent on stdio: ``READY <host>`` once every member's bus is open;
+Protocol with the parent on stdio: ``READY <host>`` once the members' buses are open;
 then a bounded wait for ``GO <t0_wall>`` on stdin; the run; the members' figures in
 ``<out>/<robot>.json`` and the host's own (wall and CPU time of the run, how late it
 got) in ``<out>/host-<host>.json``; ``DONE <host>``; the liveliness tokens stay up until
 ``STOP`` (bounded), so a host that finishes first is not taken for a lost one. A host
-exits when its stdin closes (the parent went away).
+exits when its stdin closes (the parent went away). ``HILNAV_FLEET_PROFILE=DIR``: the
+run under cProfile, timed by the stepping thread's CPU time, in ``DIR/host-<host>.prof``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import select
 import sys
@@ -26,11 +35,17 @@ import threading
 import time
 from pathlib import Path
 
-from hilnav.bus import ZenohSettings
+from hilnav.bus import ZenohSettings, zenoh_problem
+from hilnav.bus_session import BusSession
 from hilnav.config import ConfigError, load_config
 from hilnav.fleet.robot import SimRobot
 from hilnav.fleet.scenarios import ScenarioArgs, build
+from hilnav.log.encoding import ViewMemo
+from hilnav.log.foxglove import views_use_state
 from hilnav.runtime import StartError
+from hilnav.topics import PEER_TOPICS, topic_type
+
+POLL_S = 0.001  # how often a host waiting for its robots' peers looks for their boxes
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
@@ -95,13 +110,16 @@ class Host:
             base = load_config(args.config)
         except ConfigError as exc:
             raise SystemExit(f"hilnav fleet host {args.host}: {exc}") from None
-        zs = zenoh_from_json(args.zenoh)
+        self.zenoh = zs = zenoh_from_json(args.zenoh)
         self.wake = threading.Event()
         out = None if args.no_log else args.out
+        # the robots' one Zenoh session, opened by open(); their peers' boxes' log views
+        self.session: BusSession | None = None
+        self.memo = ViewMemo(peer_classes())
         self.robots = [
             robot_class(
                 self.scenario, name, base, zs, out=out, wake=self.wake,
-                reference=not args.no_reference,
+                reference=not args.no_reference, memo=self.memo,
             )
             for name in args.members.split(",")
         ]  # fmt: skip
@@ -111,12 +129,20 @@ class Host:
         self.wall_s = self.cpu_s = 0.0
 
     def open(self) -> None:
+        """The host's Zenoh session, then each robot's bus on it, log and token."""
+        try:
+            self.session = BusSession(self.zenoh, deferred=True)
+        except Exception as exc:  # zenoh.ZError and friends
+            raise StartError(f"cannot open the Zenoh session: {zenoh_problem(exc)}") from None
         for r in self.robots:
+            r.shared = self.session
             r.open(self.meta)
 
     def close(self) -> None:
         for r in self.robots:
             r.close()
+        if self.session is not None:
+            self.session.close()
 
     def run(self, t0: float) -> bool:
         """Every step of the scenario, paced from ``t0``; False if the parent went away."""
@@ -150,9 +176,9 @@ class Host:
             remaining = deadline - time.time()
             if remaining <= 0:
                 return
-            self.wake.wait(remaining)
+            # the peers' boxes wait in the session's channel: looked at every POLL_S
+            self.wake.wait(min(remaining, POLL_S))
             self.wake.clear()
-            time.sleep(0.0005)  # let a burst of boxes in before looking again
             for r in self.robots:
                 r.pump()
 
@@ -174,6 +200,29 @@ class Host:
         (a.out / f"host-{a.host}.json").write_text(json.dumps(host))
 
 
+def peer_classes() -> list[type]:
+    """The classes of the peers' messages every robot of a host logs, whose log views
+    can be shared (hilnav.log.encoding.ViewMemo)."""
+    classes = (topic_type(t) for t in PEER_TOPICS)
+    return [c for c in classes if c is not None and not views_use_state(c)]
+
+
+def profiled(host: Host, t0: float) -> bool:
+    """``host.run(t0)``; with ``HILNAV_FLEET_PROFILE=DIR`` in the environment, under
+    cProfile timed by the stepping thread's CPU time (``DIR/host-<host>.prof``)."""
+    where = os.environ.get("HILNAV_FLEET_PROFILE")
+    if not where:
+        return host.run(t0)
+    import cProfile
+
+    prof = cProfile.Profile(time.thread_time)
+    try:
+        return prof.runcall(host.run, t0)
+    finally:
+        Path(where).mkdir(parents=True, exist_ok=True)
+        prof.dump_stats(Path(where) / f"host-{host.args.host}.prof")
+
+
 def _cpu() -> float:
     r = resource.getrusage(resource.RUSAGE_SELF)
     return r.ru_utime + r.ru_stime
@@ -193,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         if parts is None or len(parts) != 2:
             print(f"host {args.host}: no GO from the parent, exiting", file=sys.stderr)
             return 2
-        if not host.run(float(parts[1])):
+        if not profiled(host, float(parts[1])):
             print(f"host {args.host}: parent gone, exiting", file=sys.stderr)
             return 3
         host.write_results()

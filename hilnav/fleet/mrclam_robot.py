@@ -111,8 +111,9 @@ class MrclamRobot(SimRobot):
             return VelocityRuntimePipeline(self.name, initial, on_output)
 
         return RobotRuntime(
-            self.cfg, zenoh=zenoh, prog=f"hilnav fleet: {self.name}", wake=wake, pipeline=pipeline
-        )
+            self.cfg, zenoh=zenoh, prog=f"hilnav fleet: {self.name}", wake=wake,
+            pipeline=pipeline, memo=self.memo,
+        )  # fmt: skip
 
     @property
     def pipe(self) -> VelocityRuntimePipeline:

@@ -236,7 +236,9 @@ class PaperReference:
 
     def record(self, truth: Sequence[float], multi: PoseBox) -> None:
         self.tracks["ekf"].record(*self.ekf.box_arrays(3.0), truth)
-        self.tracks["single_cp"].record(*_cp_bounds(self.single.cp), truth)
+        b = self.single.cp.box()
+        lo, hi = (b.x.lo, b.y.lo, b.theta.lo), (b.x.hi, b.y.hi, b.theta.hi)
+        self.tracks["single_cp"].record(lo, hi, truth)
         self.monitor.check(self.ekf.estimate(), multi)
 
     def figures(self, dt: float) -> dict[str, Any]:

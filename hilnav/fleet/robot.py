@@ -26,9 +26,11 @@ from pathlib import Path
 from typing import Any
 
 from hilnav.bus import ZenohSettings
+from hilnav.bus_session import BusSession
 from hilnav.config import RobotConfig
 from hilnav.fleet.scenarios import FleetScenario, Reference, RobotDevices
 from hilnav.fleet.score import Track
+from hilnav.log.encoding import ViewMemo
 from hilnav.runtime import Item, RobotRuntime
 from hilnav.topics import log_topic
 from msgs import GroundTruth, Pose2D, wrap_angle
@@ -47,11 +49,16 @@ class SimRobot:
         out: Path | None,
         wake: threading.Event | None = None,
         reference: bool = True,
+        shared: BusSession | None = None,
+        memo: ViewMemo | None = None,
     ) -> None:
+        """``shared``, ``memo``: the host's Zenoh session and log views, shared by its
+        robots (None: a session of the robot's own)."""
         self.scenario, self.name = scenario, name
         self.cfg = scenario.config(name, base)
         if not self.cfg.services.localization.enabled:
             raise ValueError(f"{name}: the fleet needs services.localization.enabled = true")
+        self.shared, self.memo = shared, memo
         self.rt = self.make_runtime(zenoh, wake)
         self.out = out
         self.want_reference = reference
@@ -66,7 +73,9 @@ class SimRobot:
 
     def make_runtime(self, zenoh: ZenohSettings, wake: threading.Event | None) -> RobotRuntime:
         """The robot's runtime (a scenario's robot class may give it another pipeline)."""
-        return RobotRuntime(self.cfg, zenoh=zenoh, prog=f"hilnav fleet: {self.name}", wake=wake)
+        return RobotRuntime(
+            self.cfg, zenoh=zenoh, prog=f"hilnav fleet: {self.name}", wake=wake, memo=self.memo
+        )
 
     @property
     def cp(self) -> Any:
@@ -77,7 +86,7 @@ class SimRobot:
     def open(self, metadata: dict[str, str] | None = None) -> None:
         """The Zenoh session, the log, the peers' subscriptions and the liveliness token."""
         rt = self.rt
-        rt.open_bus()
+        rt.open_bus(self.shared)
         if self.out is not None:
             rt.open_log(self.out / f"{self.name}.mcap", simulated=True, metadata=metadata)
         rt.declare_peers()
@@ -97,7 +106,10 @@ class SimRobot:
         return self._base_ns + int((stamp_ns - self._base_ns) / self._rate)
 
     def pump(self) -> int:
-        """Handle what is queued (peer boxes, liveliness); drop silent peers."""
+        """Handle what is queued (peer boxes, liveliness: the host's session hands over
+        what it received first); drop silent peers."""
+        if self.shared is not None:
+            self.shared.pump()
         rt, n = self.rt, 0
         while (item := rt.next(0.0)) is not None:
             if type(item) is Item and item.peer and item.topic == "pose_box":
@@ -144,10 +156,11 @@ class SimRobot:
             self.pump()
         t = self.devices.truth(s)
         truth = (t.x, t.y, t.theta)
-        x, y, th = cp.current()
-        self.multi.record([x.lo, y.lo, th.lo], [x.hi, y.hi, th.hi], truth)
+        box = cp.box()  # (its heading next to (-pi, pi]: tracks compare modulo 2 pi)
+        bx, by, bt = box.x, box.y, box.theta
+        self.multi.record((bx.lo, by.lo, bt.lo), (bx.hi, by.hi, bt.hi), truth)
         if self.reference is not None:
-            self.reference.record(truth, cp.box())
+            self.reference.record(truth, box)
         self.steps += 1
 
     def close(self) -> None:

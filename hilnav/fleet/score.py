@@ -12,27 +12,31 @@ from typing import Any
 import numpy as np
 
 METHODS = ("ekf", "single_cp", "multi_cp")
+TWO_PI = 2 * math.pi
 
 
 @dataclass
 class Track:
     """Per-step record of one method: box bounds, area and whether it held the truth."""
 
-    lo: list[np.ndarray] = field(default_factory=list)
-    hi: list[np.ndarray] = field(default_factory=list)
+    lo: list[tuple[float, float, float]] = field(default_factory=list)
+    hi: list[tuple[float, float, float]] = field(default_factory=list)
     area_m2: list[float] = field(default_factory=list)
     contained: list[bool] = field(default_factory=list)
 
     def record(self, lo: Sequence[float], hi: Sequence[float], truth: Sequence[float]) -> None:
         """The box [lo, hi] (x, y, theta) of one step against the truth (x, y, theta);
-        headings are compared modulo 2 pi (boxes keep theta continuous)."""
-        lo_a, hi_a = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
-        k = np.round((0.5 * (lo_a[2] + hi_a[2]) - truth[2]) / (2 * math.pi))
-        tt = np.array([truth[0], truth[1], truth[2] + 2 * math.pi * k])
-        self.lo.append(lo_a)
-        self.hi.append(hi_a)
-        self.area_m2.append(float((hi_a[0] - lo_a[0]) * (hi_a[1] - lo_a[1])))
-        self.contained.append(bool(np.all((lo_a <= tt) & (tt <= hi_a))))
+        headings are compared modulo 2 pi (the box's heading taken 2 pi k from the truth's
+        that puts it nearest the box's middle; boxes may keep theta continuous)."""
+        lo_t = (float(lo[0]), float(lo[1]), float(lo[2]))
+        hi_t = (float(hi[0]), float(hi[1]), float(hi[2]))
+        q = (0.5 * (lo_t[2] + hi_t[2]) - truth[2]) / TWO_PI
+        k = float(round(q)) if math.isfinite(q) else q  # half to even, as numpy's
+        tt = (float(truth[0]), float(truth[1]), truth[2] + TWO_PI * k)
+        self.lo.append(lo_t)
+        self.hi.append(hi_t)
+        self.area_m2.append((hi_t[0] - lo_t[0]) * (hi_t[1] - lo_t[1]))
+        self.contained.append(all(a <= t <= b for a, t, b in zip(lo_t, tt, hi_t, strict=True)))
 
     def figures(self, dt: float) -> dict[str, Any]:
         """Cumulative area (m^2 s), steps contained and the second half's areas."""

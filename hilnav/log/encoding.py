@@ -10,7 +10,10 @@ The MCAP writer (:class:`hilnav.log.writer.LogWriter`) and the live Foxglove bri
 file see the same channels, schemas and bytes.
 
 A :class:`Sink` takes the records of one message with its log and publish times; the
-daemon encodes each message once and hands the records to each of its sinks.
+daemon encodes each message once and hands the records to each of its sinks. Encoders of
+several robots in one process (a fleet host: every robot logs every peer's box) may share
+a :class:`ViewMemo`: the views of a message logged on the same topic with the same native
+bytes are made once.
 """
 
 from __future__ import annotations
@@ -75,6 +78,47 @@ class Record(NamedTuple):
 _SCHEMA_NAMES: dict[type, str] = {}
 
 
+class ViewMemo:
+    """What the encoders of one process share for messages of ``classes``: a message's
+    records when it is the very message last encoded on its topic (a fleet host hands
+    one decoded peer box to each of its robots), else its Foxglove views by (log topic,
+    native record bytes). Only for classes whose views are a function of the topic and
+    the message alone (:func:`hilnav.log.foxglove.views_use_state` false; ValueError
+    otherwise; messages are frozen): equal bytes, equal message, equal views. At most
+    ``size`` views (then it starts again empty)."""
+
+    def __init__(self, classes: Sequence[type], size: int = 4096) -> None:
+        stateful = [c.__name__ for c in classes if foxglove.views_use_state(c)]
+        if stateful:
+            raise ValueError(f"views of {', '.join(stateful)} depend on earlier messages")
+        self.classes = frozenset(classes)
+        self.size = size
+        self.hits = 0  # messages whose records or views were found here
+        self._views: dict[tuple[str, bytes], list[Record]] = {}
+        self._last: dict[str, tuple[Any, tuple[Record, ...]]] = {}  # topic -> (msg, records)
+
+    def last(self, topic: str, msg: Any) -> tuple[Record, ...] | None:
+        """The records of ``msg`` if it is the message last encoded on ``topic``."""
+        last = self._last.get(topic)
+        if last is not None and last[0] is msg:
+            self.hits += 1
+            return last[1]
+        return None
+
+    def views(self, topic: str, data: bytes) -> list[Record] | None:
+        views = self._views.get((topic, data))
+        if views is not None:
+            self.hits += 1
+        return views
+
+    def keep(self, topic: str, msg: Any, records: list[Record]) -> None:
+        """``msg``'s records (the native one first) as encoded on ``topic``."""
+        if len(self._views) >= self.size:
+            self._views.clear()
+        self._views[(topic, records[0].data)] = records[1:]
+        self._last[topic] = (msg, tuple(records))
+
+
 class Encoder:
     """``encode(topic, msg)``: the native record and its Foxglove views (thread-safe).
 
@@ -83,9 +127,10 @@ class Encoder:
     message, NaN in a diverged filter) is counted in ``views_skipped`` and left out; the
     native record is what matters. An unencodable native message raises."""
 
-    def __init__(self, views: bool = True) -> None:
+    def __init__(self, views: bool = True, memo: ViewMemo | None = None) -> None:
         self.views = views
         self.views_skipped = 0
+        self.memo = memo  # views shared with other encoders (module docstring)
         self._state = foxglove.ViewState()
         self._lock = threading.Lock()
 
@@ -94,10 +139,29 @@ class Encoder:
         name = _SCHEMA_NAMES.get(cls)
         if name is None:
             name = _SCHEMA_NAMES[cls] = msgs.schema_name(cls)
+        memo = self.memo
+        if memo is not None and self.views and cls in memo.classes:
+            return self._shared(memo, topic, name, msg)
         out = [Record(topic, name, msgs.encode(msg), cls)]
         if self.views and foxglove.may_have_views(cls):
             with self._lock:
                 out.extend(self._views(topic, msg))
+        return out
+
+    def _shared(self, memo: ViewMemo, topic: str, name: str, msg: Any) -> list[Record]:
+        """:meth:`encode` through the memo (records and views made once per process)."""
+        known = memo.last(topic, msg)
+        if known is not None:
+            return list(known)
+        data = msgs.encode(msg)
+        out = [Record(topic, name, data, type(msg))]
+        if foxglove.may_have_views(type(msg)):
+            views = memo.views(topic, data)
+            if views is None:
+                with self._lock:
+                    views = self._views(topic, msg)
+            out.extend(views)
+        memo.keep(topic, msg, out)
         return out
 
     def _views(self, topic: str, msg: Any) -> list[Record]:

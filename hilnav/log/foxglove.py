@@ -283,6 +283,13 @@ def may_have_views(cls: type) -> bool:
     return (hasattr(cls, "xs") and hasattr(cls, "ys")) or hasattr(cls, "landmarks")
 
 
+def views_use_state(cls: type) -> bool:
+    """True when :func:`views` of a ``cls`` message reads or writes its ``state`` (the
+    estimate's map -> odom, the odometry's pose): its views are then not a function of
+    the topic and the message alone."""
+    return issubclass(cls, PoseEstimate | RobotOdometry)
+
+
 def views(topic: str, msg: Any, state: ViewState | None = None) -> list[View]:
     """Foxglove views of the message ``msg`` logged on ``topic`` (may be empty)."""
     robot, name = split_log_topic(topic)
