@@ -72,6 +72,10 @@ class WakePipe:
             with contextlib.suppress(OSError):
                 os.write(self.wfd, b"\0")
 
+    def is_set(self) -> bool:
+        """A wake-up is pending (``threading.Event``'s name: producers skip a set)."""
+        return self._pending
+
     def clear(self) -> None:
         with contextlib.suppress(OSError):
             os.read(self.rfd, 4096)
