@@ -6,8 +6,9 @@ docs/algorithms.md, "CP on the MRCLAM robots", derives them from the data).
 - **Range.** The MRCLAM camera ranges a tube by its apparent size, so it reports the depth
   r cos(psi) along its optical axis, not the range r (``range_model = "depth"``): the
   bounds hold r cos(psi_m), psi_m the bearing measured, and the true range is within
-  [(1 - lo) rho - abs, (1 + hi) rho + abs] / cos(psi_m) (robots, whose tubes read
-  farther, have their own lo and hi). A bearing outside any camera's field (cos < MIN_COS)
+  [rho + lo(rho), rho + hi(rho)] / cos(psi_m), lo and hi quadratics in rho (an offset, a
+  scale and the depth's quantisation, which grows as rho^2; robots, whose tubes read
+  farther, have their own). A bearing outside any camera's field (cos < MIN_COS)
   keeps only the lower bound. ``range_model = "range"``: the bounds hold r itself.
 - **Bearing.** The bearing relative to the camera heading (the solver's per-frame
   unknown) is within bearing_rad + bearing_lateral_m / rho: a floor and a lateral error
@@ -25,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from localization.cp_config import RangeBearingCPConfig
+from localization.cp_config import RangeBearingCPConfig, poly
 
 _INF = np.inf
 #: Depth model: a bearing whose cosine is below this gives no upper range bound.
@@ -76,15 +77,16 @@ class Sightings:
     def _rho(self, r: float, b: float, robot: bool = False) -> tuple[float, float]:
         """The true range of a target measured at range ``r``, bearing ``b``: the
         bounds of the config hold the depth r cos(b) (``range_model = "depth"``) or the
-        range itself; ``robot``: the target is a robot (its own bounds)."""
+        range itself, within [r + lo(r), r + hi(r)] (``range_lo_poly``, ...);
+        ``robot``: the target is a robot (its own bounds)."""
         c = self.cfg
-        lo_rel, hi_rel = (
-            (c.robot_range_rel_lo, c.robot_range_rel_hi)
+        lo_p, hi_p = (
+            (c.robot_range_lo_poly, c.robot_range_hi_poly)
             if robot
-            else (c.range_rel_lo, c.range_rel_hi)
+            else (c.range_lo_poly, c.range_hi_poly)
         )
-        lo = max(0.0, (1.0 - lo_rel) * r - c.range_abs_m)
-        hi = (1.0 + hi_rel) * r + c.range_abs_m
+        lo = max(0.0, r + poly(lo_p, r))
+        hi = r + poly(hi_p, r)
         if c.range_model == "depth":
             cb = math.cos(b)
             if cb < MIN_COS:  # outside any camera's field of view: r >= its depth only

@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from localization.chain import leave_out, projections, relaxed_chain_at
-from localization.cp_config import RangeBearingCPConfig
+from localization.cp_config import RangeBearingCPConfig, poly
 from localization.cp_rb import RangeBearingCP
 from localization.velocity_odometry import CommandIntegrator, predict_boxes
 
@@ -82,15 +82,26 @@ class World:
             d = math.hypot(lx - x, ly - y)
             if d > max_range or d < 0.3:
                 continue
-            u = rng.uniform(1.0 - 0.9 * c.range_rel_lo, 1.0 + 0.9 * c.range_rel_hi)
             e = rng.uniform(-0.9, 0.9) * (c.bearing_rad + c.bearing_lateral_m / d)
             b = math.atan2(ly - y, lx - x) - th + common + e
             if c.range_model == "depth":  # the camera reports r cos(bearing measured)
                 if math.cos(b) < 0.35:  # outside its field of view
                     continue
                 d *= math.cos(b)
-            out.append((s, d / u, math.remainder(b, TAU)))
+            out.append((s, _measured(c, d, rng.uniform(0.05, 0.95)), math.remainder(b, TAU)))
         return out
+
+
+def _measured(c: RangeBearingCPConfig, d: float, f: float) -> float:
+    """A measured range whose bounds hold ``d`` at the fraction ``f`` of their width
+    (bisection: rho + lo(rho) + f (hi(rho) - lo(rho)) grows with rho)."""
+    lo, hi = 0.0, 2.0 * d + 1.0
+    for _ in range(60):
+        rho = 0.5 * (lo + hi)
+        x = rho + poly(c.range_lo_poly, rho)
+        x += f * (poly(c.range_hi_poly, rho) - poly(c.range_lo_poly, rho))
+        lo, hi = (rho, hi) if x < d else (lo, rho)
+    return 0.5 * (lo + hi)
 
 
 def _drive(world: World, cp: RangeBearingCP, period: float = 0.25, start: float = 0.5,

@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from localization.cp_config import RangeBearingCPConfig
+from localization.cp_config import RangeBearingCPConfig, poly
 from localization.cp_rb_pieces import heading_pieces
 from localization.cp_rb_sightings import MIN_COS, Sightings
 from localization.velocity_odometry import (
@@ -33,25 +33,36 @@ def test_range_interval_holds_every_true_range_inside_the_bounds(model):
     cp = Sightings(cfg, LM)
     rng = np.random.default_rng(11)
     for robot in (False, True):
-        lo_rel, hi_rel = (
-            (cfg.robot_range_rel_lo, cfg.robot_range_rel_hi)
+        lo_p, hi_p = (
+            (cfg.robot_range_lo_poly, cfg.robot_range_hi_poly)
             if robot
-            else (cfg.range_rel_lo, cfg.range_rel_hi)
+            else (cfg.range_lo_poly, cfg.range_hi_poly)
         )
         for _ in range(3000):
-            r = rng.uniform(0.05, 8.0)  # true range
+            rho = rng.uniform(0.0, 9.0)  # the measurement
             b = rng.uniform(-1.4, 1.4)  # bearing measured
-            x = r * math.cos(b) if model == "depth" else r  # what the bounds hold
-            # a measurement rho whose error is anywhere inside the bounds (edges too)
+            # what the bounds hold (depth or range): anywhere inside them, edges too
+            lo_x, hi_x = max(0.0, rho + poly(lo_p, rho)), rho + poly(hi_p, rho)
             f = rng.choice([0.0, 1.0, rng.uniform()])
-            lo_rho = (x - cfg.range_abs_m) / (1.0 + hi_rel)  # x = (1 + hi) rho + abs
-            hi_rho = (x + cfg.range_abs_m) / (1.0 - lo_rel)  # x = (1 - lo) rho - abs
-            rho = max(0.0, lo_rho + f * (hi_rho - lo_rho))
+            x = lo_x + f * (hi_x - lo_x)
+            r = x / math.cos(b) if model == "depth" else x  # the true range
             lo, hi = cp._rho(rho, b, robot)
             assert lo <= r <= hi, (model, robot, r, b, rho, lo, hi)
             assert lo >= 0.0
             if model == "depth" and math.cos(b) < MIN_COS:
                 assert hi == math.inf
+
+
+def test_range_bounds_are_quadratic_and_checked():
+    """The landmarks' depth interval is narrowest at mid range (offset and scale) and
+    grows as rho^2 far away; polynomials whose hi falls below lo are refused."""
+    cfg = RangeBearingCPConfig()
+    w = [poly(cfg.range_hi_poly, r) - poly(cfg.range_lo_poly, r) for r in (1.0, 3.0, 7.0)]
+    assert w[0] < w[1] < w[2]
+    with pytest.raises(ValueError, match="hi below lo"):
+        replace(cfg, range_hi_poly=(-0.2, 0.0, 0.0))
+    with pytest.raises(ValueError, match="three finite"):
+        replace(cfg, range_lo_poly=(0.0, math.nan, 0.0))
 
 
 def test_bearing_bound_is_wider_at_short_range():
