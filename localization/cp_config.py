@@ -71,6 +71,13 @@ class RangeBearingCPConfig:
     heading_drift_radps: float = 0.005  # b
     heading_drift_per_m: float = 0.1  # b_m, rad per metre of commanded path
     heading_turn_rel: float = 0.3  # r, fraction of the commanded turn
+    #: The same pair condition with a smaller turn fraction r2 (the slope of the
+    #: residual's tail over turns of 1-4 rad: the turn rate's scale errors of 3-8 % with
+    #: a margin) and the transient a2 it then needs: exceeded by 5e-5 of the 30 million
+    #: pairs of instants up to 60 s apart (0.171 rad). Long turns: a + r S against
+    #: a2 + r2 S, the smaller holds (velocity_odometry: ``dw``).
+    heading_turn_rel_long: float = 0.12
+    heading_transient_long_rad: float = 0.175
     yaw_rate_cap_radps: float = 0.7  # fastest turn seen: 0.61 rad/s
     #: Path length L in [(1 - lo) S - p, (1 + hi) S + p], p = path_abs + path_drift dt.
     speed_rel_hi: float = 0.2

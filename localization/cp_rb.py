@@ -263,6 +263,7 @@ class RangeBearingCP:
         return WindowProblem(
             theta, arr["dc"], arr["hmin"], arr["hmax"], arr["l_lo"], arr["l_hi"],
             arr["slack"], arr["cap"], hard[0], hard[1], hard[2], hard[3], b, at, own,
+            arr["dw"],
         )  # fmt: skip
 
     def _run(self, warm: bool, prior: bool, q: int) -> WindowSolution:

@@ -73,6 +73,9 @@ class WindowProblem:
     obs: np.ndarray  # (7, 2, m)
     at: np.ndarray  # (m,) state of each observation
     own: np.ndarray  # (m,) the robot is the observer (else the target)
+    #: (n-1,) bound of the heading error's change inside each step (the pair condition's
+    #: smaller bound, ``velocity_odometry``): a chain on the headings themselves
+    dw: np.ndarray | None = None
 
 
 @dataclass
@@ -163,6 +166,12 @@ def _solve_pieces(
     c = meet_box(c, chain_k(c[0], c[1], -p.dc, p.dc))
     obs = np.repeat(p.obs[:, :, None, :], b, axis=2)  # (7, 2, B, m)
     dcl, dch = -p.dc, p.dc
+    if p.dw is None:
+        dw = p.dc + 2.0 * half_a + GUARD  # what the offset chain already implies
+    else:
+        dw = p.dw
+    dh = np.diff(p.theta)
+    twl, twh = K.add(dh, dh, -dw, dw)  # the heading chain's steps
     bad = np.zeros((b, m), bool)
     at_state = at[:, None] == np.arange(n)[None, :]  # (m, n)
     dead = np.zeros(b, bool)
@@ -172,11 +181,12 @@ def _solve_pieces(
         th = meet_box(th, (tl, tu))
         ph = meet_box(ph, widen_box(th, beta_c))
         th = meet_box(th, widen_box(ph, beta_c))
+        th = meet_box(th, chain_k(th[0], th[1], twl, twh))
         wl, wh = K.add(c[0, :, :-1], c[1, :, :-1], dcl, dch)
         vl, vh = K.add(c[0, :, 1:], c[1, :, 1:], dcl, dch)
         dx_l, dx_h, dy_l, dy_h = displacements(
             p.theta[:-1], p.hmin, p.hmax, np.maximum(wl, vl), np.minimum(wh, vh),
-            half_a, p.l_lo, p.l_hi, p.slack, p.cap,
+            half_a, p.l_lo, p.l_hi, p.slack, p.cap, _inside(th, p.hmin, p.hmax, dh, dw),
         )  # fmt: skip
         x = meet_box(x, chain_k(x[0], x[1], dx_l, dx_h))
         y = meet_box(y, chain_k(y[0], y[1], dy_l, dy_h))
@@ -218,6 +228,7 @@ def _solve_pieces(
             hcc, hf = _relax(c, pc, q, hyps), _relax(ph, pf, q, hyps)
             tl, tu = K.add(p.theta + hcc[0], p.theta + hcc[1], -half_a - GUARD, half_a + GUARD)
             ht = meet_box(meet_box(th[:, :, None, :], (tl, tu)), widen_box(hf, beta_c))
+            ht = meet_box(ht, chain_k(ht[0], ht[1], twl, twh))
             hf = meet_box(hf, widen_box(ht, beta_c))
             hcc = meet_box(
                 hcc, K.sub(ht[0], ht[1], p.theta - half_a - GUARD, p.theta + half_a + GUARD)
@@ -239,6 +250,17 @@ def _solve_pieces(
         if float(np.max(np.nan_to_num(shrink, nan=0.0), initial=0.0)) <= tol:
             break
     return x, y, th, c, dead, bad
+
+
+def _inside(
+    th: np.ndarray, hmin: np.ndarray, hmax: np.ndarray, dh: np.ndarray, dw: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The headings inside each step from the headings of its two ends (2, B, n): within
+    ``dw`` of either end's plus the commanded change since (``hmin``, ``hmax``, relative
+    to the step's start; ``dh`` the whole step's)."""
+    al, ah = K.add(th[0, :, :-1] + hmin, th[1, :, :-1] + hmax, -dw, dw)
+    bl, bh = K.add(th[0, :, 1:] - dh + hmin, th[1, :, 1:] - dh + hmax, -dw, dw)
+    return np.maximum(al, bl), np.minimum(ah, bh)
 
 
 def _dead4(h: np.ndarray) -> np.ndarray:

@@ -25,6 +25,19 @@ LANDMARKS = {6 + i: (x, y, 0.0, 0.0) for i, (x, y) in enumerate(
 )}  # fmt: skip
 
 
+def _check_heading_model(cfg, e, we, ve, dt) -> None:
+    """The world's heading error ``e`` keeps both pair conditions (velocity_odometry)."""
+    turn = np.concatenate([[0.0], np.cumsum(np.abs(we[:-1]) * dt)])
+    dist = np.concatenate([[0.0], np.cumsum(np.abs(ve[:-1]) * dt)])
+    for k in range(1, e.size, 7):
+        d = np.abs(e[k:] - e[:-k])
+        base = cfg.heading_drift_radps * k * dt + cfg.heading_drift_per_m * (dist[k:] - dist[:-k])
+        tn = turn[k:] - turn[:-k]
+        assert np.all(d <= cfg.heading_transient_rad + base + cfg.heading_turn_rel * tn + 1e-9)
+        long = cfg.heading_transient_long_rad + base + cfg.heading_turn_rel_long * tn
+        assert np.all(d <= long + 1e-9)
+
+
 class World:
     """A robot driving by commands with errors inside the model's bounds (0.9 of them)."""
 
@@ -42,9 +55,10 @@ class World:
         lag = cfg.command_lag_s
         i = np.clip(np.searchsorted(t, t - lag, side="right") - 1, 0, n - 1)
         we, ve = np.where(t >= lag, w[i], 0.0), np.where(t >= lag, v[i], 0.0)
-        # heading error: drift at 0.85 of (b + r|w|), sign changing every 2 s; transient
-        # piecewise constant in +-0.4 a
-        sd = rng.choice([-1.0, 1.0], n // 200 + 2)[(t // 2.0).astype(int)]
+        # heading error: drift at 0.85 of (b + b_m |v| + r|w|), its sign alternating every
+        # 1 s (so that the long-turn bound a2 + r2 S holds too: checked below);
+        # transient piecewise constant in +-0.4 a
+        sd = np.where((t // 1.0 + rng.integers(2)) % 2 == 0, 1.0, -1.0)
         drift = np.cumsum(
             0.85
             * sd
@@ -60,6 +74,7 @@ class World:
         )
         th0 = rng.uniform(-math.pi, math.pi)
         self.th = th0 + np.cumsum(we * dt) - we[0] * dt + drift + trans
+        _check_heading_model(cfg, self.th - np.cumsum(we * dt), we, ve, dt)
         speed = ve * rng.uniform(
             1.0 - 0.9 * min(cfg.speed_rel_lo, 0.9), 1.0 + 0.9 * cfg.speed_rel_hi
         )
@@ -177,7 +192,7 @@ def test_gross_outlier_is_voted_out_and_named():
 
 
 def test_heading_lost_in_a_long_gap_recovers():
-    cfg = replace(RangeBearingCPConfig(), heading_drift_radps=0.03)  # drifts more in time
+    cfg = replace(RangeBearingCPConfig(), heading_drift_radps=0.06)  # drifts more in time
     world = World(5, cfg, seconds=60.0)
     cp = RangeBearingCP(cfg, LANDMARKS, 1)
     before = {}
