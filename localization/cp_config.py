@@ -132,6 +132,11 @@ class RangeBearingCPConfig:
     #: A peer's box is not used for this long after the peer weakened its guarantee
     #: (relaxed, reinit, lost): two windows, for its window to hold only fresh data.
     peer_quarantine_s: float = 5.0
+    #: Use a peer's pieces (heading slices, each with its own position box; the peer is
+    #: in one of them) rather than their hull: the observation is contracted with each
+    #: and the hull of the results kept, so a peer's heading stays coupled with its
+    #: position (cp_rb_solve, a union's columns).
+    peer_pieces: bool = True
     # -- solver (localization.cp_rb_solve) --
     #: q: observations of the window that may break their bounds.
     outliers: int = 1

@@ -16,7 +16,8 @@ docs/algorithms.md, "CP on the MRCLAM robots", derives them from the data).
 - **Peers.** A peer's published box is aged by its stamp (its speed bounds times the age)
   and not used for ``peer_quarantine_s`` after the peer weakened its guarantee. Seen by a
   peer: the peer's box is the observer, its heading widened by the camera's common
-  bearing bound.
+  bearing bound; if the peer sent its pieces (heading slices, each with its position
+  box), the observation is a union: one per piece (``Observation.pieces``).
 """
 
 from __future__ import annotations
@@ -49,6 +50,9 @@ class Observation:
     other: tuple[float, float, float, float, float, float]  # x, y, th (lo, hi) of the other
     rho: tuple[float, float]
     beta: tuple[float, float]
+    #: a peer's pieces (boxes like ``other``, whose hull it is): the peer lies in one of
+    #: them, so the observation holds for one of them (empty: ``other`` alone)
+    pieces: tuple[tuple[float, float, float, float, float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -61,6 +65,9 @@ class PeerBox:
     y: tuple[float, float]
     th: tuple[float, float]
     alert_t: float = -np.inf
+    #: the peer's pieces (x lo, x hi, y lo, y hi, th lo, th hi) at ``t`` whose hull is the
+    #: box (a heading slice each with its own position box), if it published them
+    pieces: tuple[tuple[float, float, float, float, float, float], ...] = ()
 
 
 class Sightings:
@@ -121,17 +128,20 @@ class Sightings:
             t, "landmark", int(subject), True, other, self._rho(r, b), self._beta(b, r)
         )
 
-    def _aged(self, t: float, box: PeerBox) -> tuple[float, ...]:
+    def _aged(self, t: float, box: PeerBox, beta_c: float = 0.0) -> tuple[float, ...]:
+        """The box widened by the peer's speed bounds times its age (the heading also by
+        ``beta_c``)."""
+        return _widen((*box.x, *box.y, *box.th), self._grow(t, box), beta_c)
+
+    def _aged_pieces(self, t: float, box: PeerBox, beta_c: float = 0.0) -> tuple:
+        if not self.cfg.peer_pieces or len(box.pieces) < 2:
+            return ()
+        g = self._grow(t, box)
+        return tuple(_widen(p, g, beta_c) for p in box.pieces)
+
+    def _grow(self, t: float, box: PeerBox) -> tuple[float, float]:
         age = abs(t - box.t)
-        g, gt = self.cfg.peer_speed_mps * age, self.cfg.peer_yaw_rate_radps * age
-        return (
-            box.x[0] - g,
-            box.x[1] + g,
-            box.y[0] - g,
-            box.y[1] + g,
-            box.th[0] - gt,
-            box.th[1] + gt,
-        )
+        return self.cfg.peer_speed_mps * age, self.cfg.peer_yaw_rate_radps * age
 
     def _trusted(self, t: float, box: PeerBox) -> bool:
         ok = t - box.alert_t >= self.cfg.peer_quarantine_s
@@ -146,22 +156,28 @@ class Sightings:
         if not self._valid(r, b) or not self._trusted(t, box):
             return None
         return Observation(
-            t,
-            "peer_seen",
-            int(peer),
-            True,
-            self._aged(t, box),
-            self._rho(r, b, True),
+            t, "peer_seen", int(peer), True, self._aged(t, box), self._rho(r, b, True),
             self._beta(b, r),
-        )
+        )  # fmt: skip
 
     def seen_by(self, t: float, peer: int, r: float, b: float, box: PeerBox) -> Observation | None:
-        """``peer`` (box ``box``, with its heading) sees this robot at ``r``, ``b``."""
+        """``peer`` (box ``box``, with its heading) sees this robot at ``r``, ``b``: the
+        peer's camera heading is its heading +- the common bearing bound. The peer's
+        pieces, if it sent them (``peer_pieces``), are used rather than their hull: with
+        its heading uncertain, each heading slice with its own position box puts this
+        robot on a short arc, the hull on a long one (only the sightings carry pieces;
+        a peer seen is a target, where its heading does not matter)."""
         if not self._valid(r, b) or not self._trusted(t, box):
             return None
-        aged = list(self._aged(t, box))
-        g = self.cfg.bearing_common_rad  # the peer's camera heading: its heading +- this
-        aged[4], aged[5] = aged[4] - g, aged[5] + g
+        g = self.cfg.bearing_common_rad
         return Observation(
-            t, "seen_by", int(peer), False, tuple(aged), self._rho(r, b, True), self._beta(b, r)
-        )
+            t, "seen_by", int(peer), False, self._aged(t, box, g), self._rho(r, b, True),
+            self._beta(b, r), self._aged_pieces(t, box, g),
+        )  # fmt: skip
+
+
+def _widen(b, g: tuple[float, float], beta_c: float) -> tuple[float, ...]:
+    """A box (x lo, x hi, y lo, y hi, th lo, th hi) widened by g[0] in x, y and g[1] +
+    beta_c in th."""
+    gt = g[1] + beta_c
+    return (b[0] - g[0], b[1] + g[0], b[2] - g[0], b[3] + g[0], b[4] - gt, b[5] + gt)

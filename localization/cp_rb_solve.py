@@ -76,6 +76,21 @@ class WindowProblem:
     #: (n-1,) bound of the heading error's change inside each step (the pair condition's
     #: smaller bound, ``velocity_odometry``): a chain on the headings themselves
     dw: np.ndarray | None = None
+    #: (m,) the observation each column belongs to (non-decreasing), when some are
+    #: unions (a peer's pieces: one column each, the observation holds for one of them;
+    #: None: one column per observation)
+    group: np.ndarray | None = None
+
+    @property
+    def starts(self) -> np.ndarray | None:
+        """The first column of each observation (None: one column each)."""
+        if self.group is None:
+            return None
+        return np.flatnonzero(np.r_[True, np.diff(self.group) != 0])
+
+    @property
+    def observations(self) -> int:
+        return self.at.shape[0] if self.group is None else int(self.starts.size)
 
 
 @dataclass
@@ -154,11 +169,13 @@ def _solve_pieces(
     """The window for every piece at once: boxes (2, B, n), dead pieces (B,), and the
     observations proven inconsistent (B, m)."""
     b, n = hc.shape[1], p.theta.shape[0]
-    m = p.at.shape[0]
-    at, own = p.at, p.own
-    cols = np.arange(m)
-    rx, ry = np.where(own, OX, AX), np.where(own, OY, AY)
-    o_own = np.flatnonzero(own)
+    at_c, own_c = p.at, p.own  # per column
+    starts = p.starts
+    at, own = (at_c, own_c) if starts is None else (at_c[starts], own_c[starts])
+    m = at.shape[0]  # observations
+    cols = np.arange(at_c.shape[0])
+    rx, ry = np.where(own_c, OX, AX), np.where(own_c, OY, AY)
+    o_own = np.flatnonzero(own_c)
     t_at = p.theta[at]
     hyps = _hypotheses(m, q)
     x, y = hx.copy(), hy.copy()
@@ -198,14 +215,17 @@ def _solve_pieces(
             ref = int(np.argmax(live))
             for v in (x, y, th, c, ph):
                 v[:, dead] = v[:, ref : ref + 1]
-        obs[rx, :, :, cols] = x[:, :, at].transpose(2, 0, 1)
-        obs[ry, :, :, cols] = y[:, :, at].transpose(2, 0, 1)
-        obs[OTH, :, :, o_own] = ph[:, :, at[o_own]].transpose(2, 0, 1)
+        obs[rx, :, :, cols] = x[:, :, at_c].transpose(2, 0, 1)
+        obs[ry, :, :, cols] = y[:, :, at_c].transpose(2, 0, 1)
+        obs[OTH, :, :, o_own] = ph[:, :, at_c[o_own]].transpose(2, 0, 1)
         con, bad = contract_observation(obs)
-        bx = con[rx, :, :, cols].transpose(1, 2, 0)  # (2, B, m)
+        bx = con[rx, :, :, cols].transpose(1, 2, 0)  # (2, B, columns)
         by = con[ry, :, :, cols].transpose(1, 2, 0)
-        bf = np.where(own, con[OTH], np.array([-_INF, _INF])[:, None, None])  # camera heading
+        bf = np.where(own_c, con[OTH], np.array([-_INF, _INF])[:, None, None])  # camera heading
         bf = np.where(bad, np.array([_INF, -_INF])[:, None, None], bf)
+        if starts is not None:  # a union's columns: the hull of those not proven empty
+            bx, by, bf = (_union(v, starts) for v in (bx, by, bf))
+            bad = np.logical_and.reduceat(bad, starts, axis=-1)
         bt = widen_box(bf, beta_c)
         bc = np.stack(K.sub(bt[0], bt[1], t_at - half_a - GUARD, t_at + half_a + GUARD))
         px = projections((bx[0], bx[1]), at, (dx_l, dx_h))
@@ -250,6 +270,14 @@ def _solve_pieces(
         if float(np.max(np.nan_to_num(shrink, nan=0.0), initial=0.0)) <= tol:
             break
     return x, y, th, c, dead, bad
+
+
+def _union(v: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(2, B, columns) -> (2, B, m): the hull of each observation's columns (empty
+    columns, lo > hi, drop out)."""
+    return np.stack(
+        [np.minimum.reduceat(v[0], starts, axis=-1), np.maximum.reduceat(v[1], starts, axis=-1)]
+    )
 
 
 def _inside(
@@ -307,7 +335,7 @@ def solve_window(
             p, hx, hy, hc, hth, hph, q, half_a, beta_c, iterations, tol
         )
     live = np.flatnonzero(~dead)
-    m = p.at.shape[0]
+    m = p.observations
     b = hc.shape[1]
     if live.size == 0:
         return WindowSolution(x[:, 0], y[:, 0], th[:, 0], c[:, 0], np.ones(m, bool), True, lost, b)
