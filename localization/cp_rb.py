@@ -169,9 +169,10 @@ class RangeBearingCP:
         return self.sightings.seen_by(t, peer, r, b, box)
 
     def hear(self, peer: int, r: float, b: float, box: PeerBox) -> None:
-        """``peer`` (box ``box``, stamped when it saw this robot) saw this robot at range
-        ``r``, bearing ``b``: kept for the next :meth:`observe`, which uses it with the
-        box aged to its own instant (which also covers this robot's motion since)."""
+        """``peer`` (box ``box``, stamped when it saw this robot: the measurement's
+        instant) saw this robot at range ``r``, bearing ``b``: kept for the next :meth:`observe`, which uses it with the
+        box's position widened by this robot's motion since (its heading as it was: the
+        bearing was measured from it)."""
         self._heard.append((int(peer), float(r), float(b), box))
 
     # -- the window ----------------------------------------------------------------

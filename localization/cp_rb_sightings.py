@@ -15,8 +15,10 @@ docs/algorithms.md, "CP on the MRCLAM robots", derives them from the data).
   of the tube's image.
 - **Peers.** A peer's published box is aged by its stamp (its speed bounds times the age)
   and not used for ``peer_quarantine_s`` after the peer weakened its guarantee. Seen by a
-  peer: the peer's box is the observer, its heading widened by the camera's common
-  bearing bound; if the peer sent its pieces (heading slices, each with its position
+  peer: the peer's box when it saw this robot is the observer, its heading widened by
+  the camera's common bearing bound (not aged: the bearing was measured from it), its
+  position by this robot's motion since (speed cap times the age); if the peer sent its
+  pieces (heading slices, each with its position
   box), the observation is a union: one per piece (``Observation.pieces``).
 """
 
@@ -128,15 +130,13 @@ class Sightings:
             t, "landmark", int(subject), True, other, self._rho(r, b), self._beta(b, r)
         )
 
-    def _aged(self, t: float, box: PeerBox, beta_c: float = 0.0) -> tuple[float, ...]:
-        """The box widened by the peer's speed bounds times its age (the heading also by
-        ``beta_c``)."""
-        return _widen((*box.x, *box.y, *box.th), self._grow(t, box), beta_c)
+    def _aged(self, t: float, box: PeerBox) -> tuple[float, ...]:
+        """The box widened by the peer's speed bounds times its age."""
+        return _widen((*box.x, *box.y, *box.th), self._grow(t, box), 0.0)
 
-    def _aged_pieces(self, t: float, box: PeerBox, beta_c: float = 0.0) -> tuple:
+    def _aged_pieces(self, t: float, box: PeerBox, beta_c: float, g: tuple[float, float]) -> tuple:
         if not self.cfg.peer_pieces or len(box.pieces) < 2:
             return ()
-        g = self._grow(t, box)
         return tuple(_widen(p, g, beta_c) for p in box.pieces)
 
     def _grow(self, t: float, box: PeerBox) -> tuple[float, float]:
@@ -169,11 +169,25 @@ class Sightings:
         a peer seen is a target, where its heading does not matter)."""
         if not self._valid(r, b) or not self._trusted(t, box):
             return None
-        g = self.cfg.bearing_common_rad
+        c = self.cfg
+        # The box is the peer's when it saw this robot: its heading is the one the
+        # bearing was measured from (not aged); this robot has moved since, at most
+        # its speed cap times the age (the observer's box widened by that instead).
+        g = (c.speed_cap_mps * abs(t - box.t), 0.0)
         return Observation(
-            t, "seen_by", int(peer), False, self._aged(t, box, g), self._rho(r, b, True),
-            self._beta(b, r), self._aged_pieces(t, box, g),
+            t, "seen_by", int(peer), False, _widen((*box.x, *box.y, *box.th), g,
+            c.bearing_common_rad), self._rho(r, b, True), self._beta(b, r),
+            self._aged_pieces(t, box, c.bearing_common_rad, g),
         )  # fmt: skip
+
+
+def aged_to(box: PeerBox, t: float, cfg: RangeBearingCPConfig) -> PeerBox:
+    """``box`` (and its pieces) aged to ``t`` by the peer's speed bounds, stamped ``t``."""
+    age = abs(t - box.t)
+    g = (cfg.peer_speed_mps * age, cfg.peer_yaw_rate_radps * age)
+    w = _widen((*box.x, *box.y, *box.th), g, 0.0)
+    pieces = tuple(_widen(p, g, 0.0) for p in box.pieces)
+    return PeerBox(t, w[0:2], w[2:4], w[4:6], box.alert_t, pieces)
 
 
 def _widen(b, g: tuple[float, float], beta_c: float) -> tuple[float, ...]:

@@ -129,8 +129,9 @@ def run_cp(
         n_obs[r] += len(obs)
         if obs:
             cp.observe(t, obs)
+        if obs or seen:  # the box at t: what the peers it saw hear it with
             publish(r)
-        for s, rng, brg in seen:  # the peer hears of it, with this robot's fresh box
+        for s, rng, brg in seen:  # the peer hears of it, with this robot's box at t
             mine = peer_box(r)
             if mine is not None:
                 cps[s].hear(r, rng, brg, mine)

@@ -50,6 +50,7 @@ from typing import Any
 
 from localization.cp_config import RangeBearingCPConfig
 from localization.cp_rb import Observation, PeerBox, RangeBearingCP
+from localization.cp_rb_sightings import aged_to
 from msgs import (
     Interval,
     LandmarkMap,
@@ -177,6 +178,8 @@ class MrclamCpService:
             and msg.observer == robot
         ):
             b = peer_box(msg.box, msg.pieces)
+            if msg.box.stamp_ns != msg.stamp_ns:  # a box not taken at the measurement
+                b = aged_to(b, msg.stamp_ns * NS, self.cfg)
             self.cp.hear(subject_of(robot, self._subjects), msg.range_m, msg.bearing_rad, b)
             self.sightings_heard += 1
         return []

@@ -241,3 +241,23 @@ def test_a_sightings_pieces_are_taken_only_whole_and_inside_its_box():
     assert peer_box(box, good[:-1]).pieces == ()  # not whole
     assert peer_box(box, (0.0, 3.0, 0.0, 1.0, -1.0, 0.0)).pieces == ()  # outside the box
     assert peer_box(box).pieces == () and peer_box(box).x == (0.0, 2.0)
+
+
+def test_a_sighting_box_is_aged_to_the_measurement_not_its_heading_to_the_use():
+    """seen_by: the observer's heading is the one the bearing was measured from (the box
+    stamped at the measurement); this robot's own motion since widens the position only.
+    A box stamped before the measurement is aged to it first (aged_to)."""
+    from localization.cp_rb_sightings import PeerBox, aged_to
+
+    cfg = RangeBearingCPConfig()
+    sg = Sightings(cfg, {})
+    box = PeerBox(
+        1.0, (0.0, 1.0), (2.0, 3.0), (0.5, 0.6), pieces=((0.0, 1.0, 2.0, 3.0, 0.5, 0.6),) * 2
+    )
+    o = sg.seen_by(1.2, 2, 2.0, 0.1, box)
+    g = cfg.speed_cap_mps * 0.2
+    assert np.allclose(o.other, (-g, 1 + g, 2 - g, 3 + g, 0.5 - 0.06, 0.6 + 0.06))
+    assert np.allclose(o.pieces[0], o.other)
+    old = aged_to(PeerBox(0.8, (0.0, 1.0), (2.0, 3.0), (0.5, 0.6)), 1.0, cfg)
+    assert old.t == 1.0 and np.isclose(old.th[1], 0.6 + cfg.peer_yaw_rate_radps * 0.2)
+    assert np.isclose(old.x[0], -cfg.peer_speed_mps * 0.2)
