@@ -183,10 +183,10 @@ def _solve_pieces(
     c = meet_box(c, chain_k(c[0], c[1], -p.dc, p.dc))
     obs = np.repeat(p.obs[:, :, None, :], b, axis=2)  # (7, 2, B, m)
     dcl, dch = -p.dc, p.dc
-    if p.dw is None:
-        dw = p.dc + 2.0 * half_a + GUARD  # what the offset chain already implies
-    else:
-        dw = p.dw
+    # The heading chain: only where some step's pair bound is below what the offset
+    # chain already implies (dc + a: a long turn), else it adds nothing.
+    dw = p.dc + 2.0 * half_a + GUARD if p.dw is None else p.dw
+    longs = bool(np.any(dw < p.dc + 2.0 * half_a))
     dh = np.diff(p.theta)
     twl, twh = K.add(dh, dh, -dw, dw)  # the heading chain's steps
     bad = np.zeros((b, m), bool)
@@ -198,12 +198,14 @@ def _solve_pieces(
         th = meet_box(th, (tl, tu))
         ph = meet_box(ph, widen_box(th, beta_c))
         th = meet_box(th, widen_box(ph, beta_c))
-        th = meet_box(th, chain_k(th[0], th[1], twl, twh))
+        if longs:
+            th = meet_box(th, chain_k(th[0], th[1], twl, twh))
         wl, wh = K.add(c[0, :, :-1], c[1, :, :-1], dcl, dch)
         vl, vh = K.add(c[0, :, 1:], c[1, :, 1:], dcl, dch)
         dx_l, dx_h, dy_l, dy_h = displacements(
             p.theta[:-1], p.hmin, p.hmax, np.maximum(wl, vl), np.minimum(wh, vh),
-            half_a, p.l_lo, p.l_hi, p.slack, p.cap, _inside(th, p.hmin, p.hmax, dh, dw),
+            half_a, p.l_lo, p.l_hi, p.slack, p.cap,
+            _inside(th, p.hmin, p.hmax, dh, dw) if longs else None,
         )  # fmt: skip
         x = meet_box(x, chain_k(x[0], x[1], dx_l, dx_h))
         y = meet_box(y, chain_k(y[0], y[1], dy_l, dy_h))
@@ -248,7 +250,8 @@ def _solve_pieces(
             hcc, hf = _relax(c, pc, q, hyps), _relax(ph, pf, q, hyps)
             tl, tu = K.add(p.theta + hcc[0], p.theta + hcc[1], -half_a - GUARD, half_a + GUARD)
             ht = meet_box(meet_box(th[:, :, None, :], (tl, tu)), widen_box(hf, beta_c))
-            ht = meet_box(ht, chain_k(ht[0], ht[1], twl, twh))
+            if longs:
+                ht = meet_box(ht, chain_k(ht[0], ht[1], twl, twh))
             hf = meet_box(hf, widen_box(ht, beta_c))
             hcc = meet_box(
                 hcc, K.sub(ht[0], ht[1], p.theta - half_a - GUARD, p.theta + half_a + GUARD)
