@@ -114,7 +114,7 @@ class RangeBearingCPConfig:
     robot_range_lo_poly: tuple[float, float, float] = (-0.02, -0.115, 0.0)
     robot_range_hi_poly: tuple[float, float, float] = (0.02, -0.01, 0.0)
     #: Bearing error = a part common to every bearing of one frame (the camera's own
-    #: heading error, with the motion capture's heading jitter) + a part per bearing, a
+    #: heading error against the motion capture's, partly its timing) + a part per bearing, a
     #: floor plus a lateral error of the tube's image over the range (the EKF's noise
     #: model has the same shape: 0.0095^2 + (0.024 / r)^2). Over 10530 frames (19268
     #: landmark and robot bearings) a common part within 0.06 rad leaves every bearing

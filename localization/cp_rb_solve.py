@@ -27,6 +27,17 @@ state empty, which the caller reports instead of a box.
 **Heading pieces** (``localization.cp_rb_pieces``): the newest camera heading is cut
 into pieces (sectors of the circle when it is unknown), solved at once along a batch
 axis and joined; the live pieces are kept for the next solve (a sub-paving).
+
+**Unions.** An observation by a peer given as its pieces (the peer is in one of them) is
+one column per piece: each is contracted, and the observation's box is the hull of the
+columns not proven empty (empty only if all are). It is then one observation for the
+relaxation and the naming. Sound: the true observer lies in some piece, whose column
+keeps the truth.
+
+**Two heading chains.** The offset chain c carries the pair condition a + dc; where a
+step's long-turn bound ``dw`` is smaller (``localization.velocity_odometry``), the
+headings are also chained directly, th_{k+1} - th_k in the commanded turn +- dw, and the
+headings inside the step bounded from both its ends.
 """
 
 from __future__ import annotations

@@ -41,7 +41,9 @@ def _check_heading_model(cfg, e, we, ve, dt) -> None:
 class World:
     """A robot driving by commands with errors inside the model's bounds (0.9 of them)."""
 
-    def __init__(self, seed: int, cfg: RangeBearingCPConfig, seconds: float = 30.0) -> None:
+    def __init__(
+        self, seed: int, cfg: RangeBearingCPConfig, seconds: float = 30.0, long_turns: bool = False
+    ) -> None:
         rng = np.random.default_rng(seed)
         self.cfg, self.rng = cfg, rng
         dt = 0.01
@@ -50,7 +52,7 @@ class World:
         # commands: 1 s segments of v in {0, 0.05, 0.086}, w in {-0.4, 0, 0.3}
         seg = (t // 1.0).astype(int)
         v = rng.choice([0.0, 0.05, 0.086], seg.max() + 1)[seg]
-        w = rng.choice([-0.4, 0.0, 0.0, 0.3], seg.max() + 1)[seg]
+        w = rng.choice([-0.4, 0.0, 0.0, 0.3] if not long_turns else [0.3, 0.4], seg.max() + 1)[seg]
         self.cmd = np.column_stack([t, v, w])
         lag = cfg.command_lag_s
         i = np.clip(np.searchsorted(t, t - lag, side="right") - 1, 0, n - 1)
@@ -58,15 +60,16 @@ class World:
         # heading error: drift at 0.85 of (b + b_m |v| + r|w|), its sign alternating every
         # 1 s (so that the long-turn bound a2 + r2 S holds too: checked below);
         # transient piecewise constant in +-0.4 a
+        # long_turns: turning all the time, the drift of one sign at 0.85 of the long-turn
+        # bound's r2 (the edge of the second pair condition over long spans)
         sd = np.where((t // 1.0 + rng.integers(2)) % 2 == 0, 1.0, -1.0)
+        r = cfg.heading_turn_rel
+        if long_turns:
+            sd, r = np.full(n, rng.choice([-1.0, 1.0])), cfg.heading_turn_rel_long
         drift = np.cumsum(
             0.85
             * sd
-            * (
-                cfg.heading_drift_radps
-                + cfg.heading_drift_per_m * np.abs(ve)
-                + cfg.heading_turn_rel * np.abs(we)
-            )
+            * (cfg.heading_drift_radps + cfg.heading_drift_per_m * np.abs(ve) + r * np.abs(we))
             * dt
         )
         trans = (
@@ -168,6 +171,34 @@ def test_boxes_between_frames_hold_the_truth():
             cp.advance(t)
         misses += not cp.box().contains(*world.pose(t))
     assert misses == 0
+
+
+def test_long_blind_turns_keep_the_truth_with_a_narrower_heading():
+    """A robot turning all the time, its heading error at the edge of the long-turn bound
+    (a2 + r2 S) over a 25 s blind stretch: the boxes hold the truth, and the heading
+    predicted at the stretch's end is narrower than with the short-turn bound alone."""
+    cfg = RangeBearingCPConfig()
+    short = replace(cfg, heading_turn_rel_long=cfg.heading_turn_rel,
+                    heading_transient_long_rad=cfg.heading_transient_rad)  # fmt: skip
+    widths = {}
+    for name, c in (("both", cfg), ("short", short)):
+        world = World(6, cfg, seconds=40.0, long_turns=True)
+        cp = RangeBearingCP(c, LANDMARKS, 1)
+        before = {}
+
+        def peek(cp, t, before=before):
+            if abs(t - 30.0) < 1e-9:
+                cp.advance(t)
+                before["box"] = cp.box()
+            return []
+
+        res = _drive(world, cp, gap=(5.0, 30.0), extra=peek)
+        assert all(ok for _, ok, _ in res), name
+        b = before["box"]
+        x, y, th = world.pose(30.0)
+        assert b.contains(x, y, th), name
+        widths[name] = b.th[1] - b.th[0]
+    assert widths["both"] < widths["short"] - 1.0, widths
 
 
 def test_gross_outlier_is_voted_out_and_named():
