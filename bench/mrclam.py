@@ -2,7 +2,7 @@
 (issue 14 item 6), alone and cooperatively, in one process.
 
     python3 bench/mrclam.py [DIR] [--seconds S] [--robots 1,2,3] [--tick 0.1] [--no-ekf]
-                            [--decompose]
+                            [--decompose] [--set KEY=VALUE ...]
 
 DIR is any MRCLAM run directory (default ../shared/data/mrclam/MRCLAM_Dataset6; every
 run of the data set has the same files). Localizers, all over the merged time-ordered
@@ -38,6 +38,7 @@ version (less distorted on a busy machine), and the same for the whole bench.
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import os
 import sys
@@ -150,6 +151,14 @@ def score_cp(run: MrclamRun, tracks: dict[int, CpTrack]) -> dict:
     }
 
 
+def _no_score(ids: list[int]) -> dict:
+    """The single CP's score when it was not run (``--no-single``)."""
+    nan = float("nan")
+    per = {r: {"containment": nan, "area_median_m2": nan} for r in ids}
+    return {"robots": per, "containment_min": nan, "area_median_m2": nan,
+            "heading_width_median_rad": nan}  # fmt: skip
+
+
 def _timed(fn):
     w0, c0 = time.perf_counter(), time.process_time()
     out = fn()
@@ -193,7 +202,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tick", type=float, default=0.1, help="box report period (s)")
     ap.add_argument("--outliers", type=int, default=None, help="q (default: the config's)")
     ap.add_argument("--solve-period", type=float, default=None, help="CP solve period (s)")
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a RangeBearingCPConfig field (repeatable; for ablations)",
+    )
     ap.add_argument("--no-ekf", action="store_true", help="CP only")
+    ap.add_argument("--no-single", action="store_true", help="cooperative CP only")
     ap.add_argument(
         "--decompose",
         action="store_true",
@@ -211,11 +228,17 @@ def main(argv: list[str] | None = None) -> int:
         cfg = replace(cfg, outliers=args.outliers)
     if args.solve_period is not None:
         cfg = replace(cfg, solve_period_s=args.solve_period)
-    single, s_wall, s_cpu = _timed(
-        lambda: run_cp(run, ids, False, cfg, tick_s=args.tick, end_s=end)
+    for kv in args.set:
+        key, _, value = kv.partition("=")
+        cfg = replace(cfg, **{key.strip(): ast.literal_eval(value.strip())})
+    single, s_wall, s_cpu = (
+        _timed(lambda: run_cp(run, ids, False, cfg, tick_s=args.tick, end_s=end))
+        if not args.no_single
+        else (None, 0.0, 0.0)
     )
     coop, c_wall, c_cpu = _timed(lambda: run_cp(run, ids, True, cfg, tick_s=args.tick, end_s=end))
-    s_score, c_score = score_cp(run, single), score_cp(run, coop)
+    c_score = score_cp(run, coop)
+    s_score = score_cp(run, single) if single is not None else _no_score(ids)
     with np.errstate(invalid="ignore"):
         ekf = {} if args.no_ekf else run_ekf_part(_cut(run, end), ids, coop)
     print(f"MRCLAM {Path(args.dir).name}: robots {ids}, {seconds:.0f} s, tick {args.tick} s")
@@ -254,18 +277,19 @@ def main(argv: list[str] | None = None) -> int:
         "cp_lost": sum(v["lost"] for v in c_score["robots"].values()),
         "outliers_q": cfg.outliers,
         "solve_period_s": cfg.solve_period_s,
+        "config_overrides": args.set,
         "ekf_rmse_m": ekf.get("ekf_rmse_m"),
         "ekf_containment": ekf.get("ekf_containment"),
         "alarms": ekf.get("alarms"),
         "false_alarms": ekf.get("false_alarms"),
         "realtime_factor": seconds / c_wall,
         "realtime_factor_cpu": seconds / max(c_cpu, 1e-9),
-        "realtime_factor_single": seconds / s_wall,
+        "realtime_factor_single": seconds / s_wall if s_wall > 0 else None,
         "realtime_factor_all": seconds / total_wall,
         "realtime_factor_all_cpu": seconds / max(total_cpu, 1e-9),
         "load": os.getloadavg()[0],
     }
-    print(json.dumps(out))
+    print(json.dumps({k: (None if v != v else v) for k, v in out.items()}))  # NaN: not run
     return 0
 
 

@@ -12,6 +12,11 @@ from dataclasses import dataclass
 RANGE_MODELS = ("depth", "range")
 
 
+def poly(c: tuple[float, float, float], r: float) -> float:
+    """c0 + c1 r + c2 r^2."""
+    return c[0] + r * (c[1] + r * c[2])
+
+
 @dataclass(frozen=True)
 class CPConfig:
     """Error bounds (guaranteed, not sigmas) and solver settings."""
@@ -66,6 +71,13 @@ class RangeBearingCPConfig:
     heading_drift_radps: float = 0.005  # b
     heading_drift_per_m: float = 0.1  # b_m, rad per metre of commanded path
     heading_turn_rel: float = 0.3  # r, fraction of the commanded turn
+    #: The same pair condition with a smaller turn fraction r2 (the slope of the
+    #: residual's tail over turns of 1-4 rad: the turn rate's scale errors of 3-8 % with
+    #: a margin) and the transient a2 it then needs: exceeded by 5e-5 of the 30 million
+    #: pairs of instants up to 60 s apart (0.171 rad). Long turns: a + r S against
+    #: a2 + r2 S, the smaller holds (velocity_odometry: ``dw``).
+    heading_turn_rel_long: float = 0.12
+    heading_transient_long_rad: float = 0.175
     yaw_rate_cap_radps: float = 0.7  # fastest turn seen: 0.61 rad/s
     #: Path length L in [(1 - lo) S - p, (1 + hi) S + p], p = path_abs + path_drift dt.
     speed_rel_hi: float = 0.2
@@ -82,19 +94,27 @@ class RangeBearingCPConfig:
     #: (the Euclidean range r). With "depth" the bounds below hold r cos(psi_m) (psi_m the
     #: bearing measured) and the true range is in [lo, hi] / cos(psi_m).
     range_model: str = "depth"
-    #: Landmarks: the true range (depth) is in [(1 - lo) rho - abs, (1 + hi) rho + abs]
-    #: for a measured rho. Depth model: true depth / measured is in [0.918, 1.004] (with
-    #: abs = 0.02 m) for 99.9 % of the landmark sightings (0.05th and 99.95th
-    #: percentiles; as a range [0.931, 1.147], so 2.6x wider: the -psi^2 / 2 of cos psi).
-    range_rel_lo: float = 0.085
-    range_rel_hi: float = 0.01
-    range_abs_m: float = 0.02
-    #: Robots seen (their tubes read farther): [0.891, 0.985] as a depth; as a range
-    #: [0.909, 1.151] (then the landmarks' range bounds are used for robots too).
-    robot_range_rel_lo: float = 0.115
-    robot_range_rel_hi: float = -0.01
+    #: The true depth d of a sighting measured at rho (range_model "depth"; the range
+    #: itself with "range") is within [rho + lo(rho), rho + hi(rho)], lo and hi quadratics
+    #: c0 + c1 rho + c2 rho^2 (metres; coefficients (c0, c1, c2)). Landmarks: the 0.05th
+    #: and 99.95th percentile lines of d - rho on (1, rho, rho^2) by linear quantile
+    #: regression over the landmark sightings (misreads left out), coefficients rounded
+    #: outward (``bench/mrclam_errors.py`` derives them for any run): the camera's
+    #: depth error is an offset and a scale (the measured rho is 2-7 % long, plus
+    #: 2-4 cm) and a quantisation that grows as rho^2 (the EKF's noise model has the same
+    #: shape), so a line (the previous bound, [(1 - 0.085) rho - 0.02, (1 + 0.01) rho
+    #: + 0.02]) is too wide at 2-4 m where most sightings are (0.15 / 0.21 / 0.29 m wide
+    #: at 2 / 3 / 4 m, against 0.23 / 0.33 / 0.42).
+    range_lo_poly: tuple[float, float, float] = (-0.1302, -0.0045, -0.0089)
+    range_hi_poly: tuple[float, float, float] = (-0.0015, -0.0245, 0.0066)
+    #: Robots seen (their tubes read farther; the tails of their range errors are
+    #: other robots' barcodes misread, too few clean ones for a quadratic): true depth /
+    #: measured in [0.891, 0.985] with +- 2 cm, the 0.05th and 99.95th percentiles
+    #: (misreads left out); as a range [0.909, 1.151].
+    robot_range_lo_poly: tuple[float, float, float] = (-0.02, -0.115, 0.0)
+    robot_range_hi_poly: tuple[float, float, float] = (0.02, -0.01, 0.0)
     #: Bearing error = a part common to every bearing of one frame (the camera's own
-    #: heading error, with the motion capture's heading jitter) + a part per bearing, a
+    #: heading error against the motion capture's, partly its timing) + a part per bearing, a
     #: floor plus a lateral error of the tube's image over the range (the EKF's noise
     #: model has the same shape: 0.0095^2 + (0.024 / r)^2). Over 10530 frames (19268
     #: landmark and robot bearings) a common part within 0.06 rad leaves every bearing
@@ -112,6 +132,11 @@ class RangeBearingCPConfig:
     #: A peer's box is not used for this long after the peer weakened its guarantee
     #: (relaxed, reinit, lost): two windows, for its window to hold only fresh data.
     peer_quarantine_s: float = 5.0
+    #: Use a peer's pieces (heading slices, each with its own position box; the peer is
+    #: in one of them) rather than their hull: the observation is contracted with each
+    #: and the hull of the results kept, so a peer's heading stays coupled with its
+    #: position (cp_rb_solve, a union's columns).
+    peer_pieces: bool = True
     # -- solver (localization.cp_rb_solve) --
     #: q: observations of the window that may break their bounds.
     outliers: int = 1
@@ -134,6 +159,14 @@ class RangeBearingCPConfig:
     heading_sectors: int = 24
 
     def __post_init__(self) -> None:
+        for lo, hi in (
+            (self.range_lo_poly, self.range_hi_poly),
+            (self.robot_range_lo_poly, self.robot_range_hi_poly),
+        ):
+            if len(lo) != 3 or len(hi) != 3 or not all(map(math.isfinite, (*lo, *hi))):
+                raise ValueError("range polynomials: three finite coefficients (c0, c1, c2)")
+            if any(poly(hi, r) < poly(lo, r) for r in (0.0, 0.5, 1, 2, 4, 8, 16, 32)):
+                raise ValueError(f"range polynomials: hi below lo somewhere ({lo}, {hi})")
         if self.range_model not in RANGE_MODELS:
             raise ValueError(f"range_model must be one of {RANGE_MODELS}, got {self.range_model!r}")
         if self.outliers < 0 or self.window_s <= 0 or self.max_states < 2 or self.iterations < 1:

@@ -58,6 +58,7 @@ from localization.velocity_odometry import (
     StepBounds,
     StepIntegral,
     combine,
+    predict_boxes,
     predict_hulls,
     step_bounds,
 )
@@ -168,9 +169,10 @@ class RangeBearingCP:
         return self.sightings.seen_by(t, peer, r, b, box)
 
     def hear(self, peer: int, r: float, b: float, box: PeerBox) -> None:
-        """``peer`` (box ``box``, stamped when it saw this robot) saw this robot at range
-        ``r``, bearing ``b``: kept for the next :meth:`observe`, which uses it with the
-        box aged to its own instant (which also covers this robot's motion since)."""
+        """``peer`` (box ``box``, stamped when it saw this robot: the measurement's
+        instant) saw this robot at range ``r``, bearing ``b``: kept for the next :meth:`observe`, which uses it with the
+        box's position widened by this robot's motion since (its heading as it was: the
+        bearing was measured from it)."""
         self._heard.append((int(peer), float(r), float(b), box))
 
     # -- the window ----------------------------------------------------------------
@@ -245,24 +247,31 @@ class RangeBearingCP:
                 hard[:, 1, :, 0] = np.minimum(hard[:, 1, :, 0], hi[:, None])
         else:
             hard[:, :, :, 0] = pr.transpose(2, 1, 0)
-        obs = [(i, o) for i, st in enumerate(s) for o in st.obs]
+        # one column per observation, or per piece of a peer's box (a group: the peer is
+        # in one of its pieces, so the observation holds for one of the columns)
+        obs = [(i, g, o, part) for g, (i, o) in enumerate(
+            (i, o) for i, st in enumerate(s) for o in st.obs
+        ) for part in (o.pieces or (o.other,))]  # fmt: skip
         m = len(obs)
         b = np.zeros((7, 2, m))
-        at = np.array([i for i, _ in obs], dtype=int)
-        own = np.array([o.own for _, o in obs], dtype=bool)
+        at = np.array([i for i, _, _, _ in obs], dtype=int)
+        own = np.array([o.own for _, _, o, _ in obs], dtype=bool)
+        group = np.array([g for _, g, _, _ in obs], dtype=int)
         if m:
-            other = np.array([o.other for _, o in obs]).T  # (6, m)
+            other = np.array([part for _, _, _, part in obs]).T  # (6, m)
             rows = np.where(own, 3, 0)  # the other party: target rows AX, AY or observer rows
             cols = np.arange(m)
             b[rows, 0, cols], b[rows, 1, cols] = other[0], other[1]
             b[rows + 1, 0, cols], b[rows + 1, 1, cols] = other[2], other[3]
             nb = ~own
             b[2, 0, nb], b[2, 1, nb] = other[4, nb], other[5, nb]  # the observer's heading
-            b[5] = np.array([o.rho for _, o in obs]).T
-            b[6] = np.array([o.beta for _, o in obs]).T
+            b[5] = np.array([o.rho for _, _, o, _ in obs]).T
+            b[6] = np.array([o.beta for _, _, o, _ in obs]).T
+        groups = None if m == 0 or group[-1] == m - 1 else group
         return WindowProblem(
             theta, arr["dc"], arr["hmin"], arr["hmax"], arr["l_lo"], arr["l_hi"],
             arr["slack"], arr["cap"], hard[0], hard[1], hard[2], hard[3], b, at, own,
+            arr["dw"], groups,
         )  # fmt: skip
 
     def _run(self, warm: bool, prior: bool, q: int) -> WindowSolution:
@@ -339,6 +348,15 @@ class RangeBearingCP:
             since = combine(since, st.raw)
         since = combine(since, self.odo.peek())
         return self._states[k].t, self._states[k].theta, _pieces_at(s, k), since
+
+    def pieces(self) -> np.ndarray | None:
+        """(B, 2, 3): x, y, heading of each piece of the latest solved state predicted to
+        the latest integrated instant (the box is their hull); None before a solve."""
+        ref = self.latest()
+        if ref is None:
+            return None
+        _, theta0, b, st = ref
+        return predict_boxes(b, np.full(b.shape[0], theta0), [st] * b.shape[0], self.cfg)
 
     def box(self) -> RBBox:
         """The box at the latest integrated instant (each piece of the latest solved

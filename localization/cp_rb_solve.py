@@ -27,6 +27,17 @@ state empty, which the caller reports instead of a box.
 **Heading pieces** (``localization.cp_rb_pieces``): the newest camera heading is cut
 into pieces (sectors of the circle when it is unknown), solved at once along a batch
 axis and joined; the live pieces are kept for the next solve (a sub-paving).
+
+**Unions.** An observation by a peer given as its pieces (the peer is in one of them) is
+one column per piece: each is contracted, and the observation's box is the hull of the
+columns not proven empty (empty only if all are). It is then one observation for the
+relaxation and the naming. Sound: the true observer lies in some piece, whose column
+keeps the truth.
+
+**Two heading chains.** The offset chain c carries the pair condition a + dc; where a
+step's long-turn bound ``dw`` is smaller (``localization.velocity_odometry``), the
+headings are also chained directly, th_{k+1} - th_k in the commanded turn +- dw, and the
+headings inside the step bounded from both its ends.
 """
 
 from __future__ import annotations
@@ -73,6 +84,24 @@ class WindowProblem:
     obs: np.ndarray  # (7, 2, m)
     at: np.ndarray  # (m,) state of each observation
     own: np.ndarray  # (m,) the robot is the observer (else the target)
+    #: (n-1,) bound of the heading error's change inside each step (the pair condition's
+    #: smaller bound, ``velocity_odometry``): a chain on the headings themselves
+    dw: np.ndarray | None = None
+    #: (m,) the observation each column belongs to (non-decreasing), when some are
+    #: unions (a peer's pieces: one column each, the observation holds for one of them;
+    #: None: one column per observation)
+    group: np.ndarray | None = None
+
+    @property
+    def starts(self) -> np.ndarray | None:
+        """The first column of each observation (None: one column each)."""
+        if self.group is None:
+            return None
+        return np.flatnonzero(np.r_[True, np.diff(self.group) != 0])
+
+    @property
+    def observations(self) -> int:
+        return self.at.shape[0] if self.group is None else int(self.starts.size)
 
 
 @dataclass
@@ -151,11 +180,13 @@ def _solve_pieces(
     """The window for every piece at once: boxes (2, B, n), dead pieces (B,), and the
     observations proven inconsistent (B, m)."""
     b, n = hc.shape[1], p.theta.shape[0]
-    m = p.at.shape[0]
-    at, own = p.at, p.own
-    cols = np.arange(m)
-    rx, ry = np.where(own, OX, AX), np.where(own, OY, AY)
-    o_own = np.flatnonzero(own)
+    at_c, own_c = p.at, p.own  # per column
+    starts = p.starts
+    at, own = (at_c, own_c) if starts is None else (at_c[starts], own_c[starts])
+    m = at.shape[0]  # observations
+    cols = np.arange(at_c.shape[0])
+    rx, ry = np.where(own_c, OX, AX), np.where(own_c, OY, AY)
+    o_own = np.flatnonzero(own_c)
     t_at = p.theta[at]
     hyps = _hypotheses(m, q)
     x, y = hx.copy(), hy.copy()
@@ -163,6 +194,12 @@ def _solve_pieces(
     c = meet_box(c, chain_k(c[0], c[1], -p.dc, p.dc))
     obs = np.repeat(p.obs[:, :, None, :], b, axis=2)  # (7, 2, B, m)
     dcl, dch = -p.dc, p.dc
+    # The heading chain: only where some step's pair bound is below what the offset
+    # chain already implies (dc + a: a long turn), else it adds nothing.
+    dw = p.dc + 2.0 * half_a + GUARD if p.dw is None else p.dw
+    longs = bool(np.any(dw < p.dc + 2.0 * half_a))
+    dh = np.diff(p.theta)
+    twl, twh = K.add(dh, dh, -dw, dw)  # the heading chain's steps
     bad = np.zeros((b, m), bool)
     at_state = at[:, None] == np.arange(n)[None, :]  # (m, n)
     dead = np.zeros(b, bool)
@@ -172,11 +209,14 @@ def _solve_pieces(
         th = meet_box(th, (tl, tu))
         ph = meet_box(ph, widen_box(th, beta_c))
         th = meet_box(th, widen_box(ph, beta_c))
+        if longs:
+            th = meet_box(th, chain_k(th[0], th[1], twl, twh))
         wl, wh = K.add(c[0, :, :-1], c[1, :, :-1], dcl, dch)
         vl, vh = K.add(c[0, :, 1:], c[1, :, 1:], dcl, dch)
         dx_l, dx_h, dy_l, dy_h = displacements(
             p.theta[:-1], p.hmin, p.hmax, np.maximum(wl, vl), np.minimum(wh, vh),
             half_a, p.l_lo, p.l_hi, p.slack, p.cap,
+            _inside(th, p.hmin, p.hmax, dh, dw) if longs else None,
         )  # fmt: skip
         x = meet_box(x, chain_k(x[0], x[1], dx_l, dx_h))
         y = meet_box(y, chain_k(y[0], y[1], dy_l, dy_h))
@@ -188,14 +228,17 @@ def _solve_pieces(
             ref = int(np.argmax(live))
             for v in (x, y, th, c, ph):
                 v[:, dead] = v[:, ref : ref + 1]
-        obs[rx, :, :, cols] = x[:, :, at].transpose(2, 0, 1)
-        obs[ry, :, :, cols] = y[:, :, at].transpose(2, 0, 1)
-        obs[OTH, :, :, o_own] = ph[:, :, at[o_own]].transpose(2, 0, 1)
+        obs[rx, :, :, cols] = x[:, :, at_c].transpose(2, 0, 1)
+        obs[ry, :, :, cols] = y[:, :, at_c].transpose(2, 0, 1)
+        obs[OTH, :, :, o_own] = ph[:, :, at_c[o_own]].transpose(2, 0, 1)
         con, bad = contract_observation(obs)
-        bx = con[rx, :, :, cols].transpose(1, 2, 0)  # (2, B, m)
+        bx = con[rx, :, :, cols].transpose(1, 2, 0)  # (2, B, columns)
         by = con[ry, :, :, cols].transpose(1, 2, 0)
-        bf = np.where(own, con[OTH], np.array([-_INF, _INF])[:, None, None])  # camera heading
+        bf = np.where(own_c, con[OTH], np.array([-_INF, _INF])[:, None, None])  # camera heading
         bf = np.where(bad, np.array([_INF, -_INF])[:, None, None], bf)
+        if starts is not None:  # a union's columns: the hull of those not proven empty
+            bx, by, bf = (_union(v, starts) for v in (bx, by, bf))
+            bad = np.logical_and.reduceat(bad, starts, axis=-1)
         bt = widen_box(bf, beta_c)
         bc = np.stack(K.sub(bt[0], bt[1], t_at - half_a - GUARD, t_at + half_a + GUARD))
         px = projections((bx[0], bx[1]), at, (dx_l, dx_h))
@@ -218,6 +261,8 @@ def _solve_pieces(
             hcc, hf = _relax(c, pc, q, hyps), _relax(ph, pf, q, hyps)
             tl, tu = K.add(p.theta + hcc[0], p.theta + hcc[1], -half_a - GUARD, half_a + GUARD)
             ht = meet_box(meet_box(th[:, :, None, :], (tl, tu)), widen_box(hf, beta_c))
+            if longs:
+                ht = meet_box(ht, chain_k(ht[0], ht[1], twl, twh))
             hf = meet_box(hf, widen_box(ht, beta_c))
             hcc = meet_box(
                 hcc, K.sub(ht[0], ht[1], p.theta - half_a - GUARD, p.theta + half_a + GUARD)
@@ -239,6 +284,25 @@ def _solve_pieces(
         if float(np.max(np.nan_to_num(shrink, nan=0.0), initial=0.0)) <= tol:
             break
     return x, y, th, c, dead, bad
+
+
+def _union(v: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(2, B, columns) -> (2, B, m): the hull of each observation's columns (empty
+    columns, lo > hi, drop out)."""
+    return np.stack(
+        [np.minimum.reduceat(v[0], starts, axis=-1), np.maximum.reduceat(v[1], starts, axis=-1)]
+    )
+
+
+def _inside(
+    th: np.ndarray, hmin: np.ndarray, hmax: np.ndarray, dh: np.ndarray, dw: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The headings inside each step from the headings of its two ends (2, B, n): within
+    ``dw`` of either end's plus the commanded change since (``hmin``, ``hmax``, relative
+    to the step's start; ``dh`` the whole step's)."""
+    al, ah = K.add(th[0, :, :-1] + hmin, th[1, :, :-1] + hmax, -dw, dw)
+    bl, bh = K.add(th[0, :, 1:] - dh + hmin, th[1, :, 1:] - dh + hmax, -dw, dw)
+    return np.maximum(al, bl), np.minimum(ah, bh)
 
 
 def _dead4(h: np.ndarray) -> np.ndarray:
@@ -285,7 +349,7 @@ def solve_window(
             p, hx, hy, hc, hth, hph, q, half_a, beta_c, iterations, tol
         )
     live = np.flatnonzero(~dead)
-    m = p.at.shape[0]
+    m = p.observations
     b = hc.shape[1]
     if live.size == 0:
         return WindowSolution(x[:, 0], y[:, 0], th[:, 0], c[:, 0], np.ones(m, bool), True, lost, b)

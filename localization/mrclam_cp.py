@@ -25,7 +25,7 @@ import numpy as np
 from localization.cp_config import RangeBearingCPConfig
 from localization.cp_rb import PeerBox, RangeBearingCP
 from localization.mrclam import MrclamRun
-from localization.velocity_odometry import predict_hulls
+from localization.velocity_odometry import predict_boxes, predict_hulls
 
 _INF = np.inf
 
@@ -98,11 +98,7 @@ def run_cp(
         p = published.get(r)
         if p is None or isinstance(p, PeerBox):
             return p
-        t, theta0, b, st, _, alert = p
-        out = predict_hulls([b], np.array([theta0]), [st], cfg)[0]
-        box = PeerBox(
-            t, (out[0, 0], out[1, 0]), (out[0, 1], out[1, 1]), (out[0, 2], out[1, 2]), alert
-        )
+        box = peer_pieces(p, cfg)
         published[r] = box
         return box
 
@@ -133,13 +129,25 @@ def run_cp(
         n_obs[r] += len(obs)
         if obs:
             cp.observe(t, obs)
+        if obs or seen:  # the box at t: what the peers it saw hear it with
             publish(r)
-        for s, rng, brg in seen:  # the peer hears of it, with this robot's fresh box
+        for s, rng, brg in seen:  # the peer hears of it, with this robot's box at t
             mine = peer_box(r)
             if mine is not None:
                 cps[s].hear(r, rng, brg, mine)
                 n_obs[s] += 1
     return {r: _track(cps[r], snaps[r], cfg, n_obs[r]) for r in ids}
+
+
+def peer_pieces(snap: tuple, cfg: RangeBearingCPConfig) -> PeerBox:
+    """The box a robot publishes from its :meth:`RangeBearingCP.snapshot`: each piece of
+    its latest solved state predicted to the snapshot's instant, their hull and the
+    pieces themselves (a peer uses the pieces: they keep heading and position coupled)."""
+    t, theta0, b, st, _, alert = snap
+    out = predict_boxes(b, np.full(b.shape[0], theta0), [st] * b.shape[0], cfg)
+    lo, hi = out[:, 0].min(axis=0), out[:, 1].max(axis=0)
+    pieces = tuple(tuple(float(v) for v in o.T.ravel()) for o in out)
+    return PeerBox(t, (lo[0], hi[0]), (lo[1], hi[1]), (lo[2], hi[2]), alert, pieces)
 
 
 def _track(cp: RangeBearingCP, snaps: list, cfg: RangeBearingCPConfig, n_obs: int) -> CpTrack:

@@ -28,7 +28,8 @@ Outputs:
   state to the tick (the whole plane before the first solve), with the solver's
   ``status`` and ``alert_stamp_ns`` (when it last weakened its guarantee);
 - ``peer_sighting`` (msgs.PeerSighting) for every robot this one measured (cooperative):
-  this robot's box at that instant with the measurement, for the seen robot.
+  this robot's box at that instant with the measurement, for the seen robot, and the
+  pieces the box is the hull of (heading slices with their own position boxes).
 
 ``feed_other(robot, topic, msg)`` takes the other robots' ``pose_box`` (their latest
 bounded box: what a sighting of them is measured against, aged by its stamp,
@@ -49,6 +50,7 @@ from typing import Any
 
 from localization.cp_config import RangeBearingCPConfig
 from localization.cp_rb import Observation, PeerBox, RangeBearingCP
+from localization.cp_rb_sightings import aged_to
 from msgs import (
     Interval,
     LandmarkMap,
@@ -74,16 +76,18 @@ def subject_of(name: str, known: dict[str, int]) -> int:
     return n
 
 
-def peer_box(box: PoseBox) -> PeerBox:
-    """A published box as the solver takes it (seconds)."""
+def peer_box(box: PoseBox, pieces: tuple[float, ...] = ()) -> PeerBox:
+    """A published box (and a sighting's pieces, 6 numbers each) as the solver takes it
+    (seconds). Pieces that are not whole, or not inside the box, are dropped (the box
+    alone is then used)."""
     alert = box.alert_stamp_ns * NS if box.alert_stamp_ns > 0 else -math.inf
-    return PeerBox(
-        box.stamp_ns * NS,
-        (box.x.lo, box.x.hi),
-        (box.y.lo, box.y.hi),
-        (box.theta.lo, box.theta.hi),
-        alert,
-    )
+    hull = (box.x.lo, box.x.hi, box.y.lo, box.y.hi, box.theta.lo, box.theta.hi)
+    parts = tuple(tuple(pieces[i : i + 6]) for i in range(0, len(pieces) - len(pieces) % 6, 6))
+    if len(pieces) % 6 or not all(
+        hull[2 * k] <= p[2 * k] <= p[2 * k + 1] <= hull[2 * k + 1] for p in parts for k in range(3)
+    ):
+        parts = ()
+    return PeerBox(box.stamp_ns * NS, hull[0:2], hull[2:4], hull[4:6], alert, parts)
 
 
 class MrclamCpService:
@@ -173,7 +177,9 @@ class MrclamCpService:
             and msg.robot == self.robot
             and msg.observer == robot
         ):
-            b = peer_box(msg.box)
+            b = peer_box(msg.box, msg.pieces)
+            if msg.box.stamp_ns != msg.stamp_ns:  # a box not taken at the measurement
+                b = aged_to(b, msg.stamp_ns * NS, self.cfg)
             self.cp.hear(subject_of(robot, self._subjects), msg.range_m, msg.bearing_rad, b)
             self.sightings_heard += 1
         return []
@@ -252,8 +258,12 @@ class MrclamCpService:
             self.counts["sighting_without_box"] += len(seen)
             return out
         mine = self._box(stamp)
+        parts = cp.pieces() if self.cfg.peer_pieces else None
+        pieces = () if parts is None else tuple(float(v) for p in parts for v in p.T.ravel())
         for m in seen:
-            sighting = PeerSighting(stamp, m.target, self.robot, m.range_m, m.bearing_rad, mine)
+            sighting = PeerSighting(
+                stamp, m.target, self.robot, m.range_m, m.bearing_rad, mine, pieces
+            )
             out.append(("peer_sighting", sighting))
             self.sightings_sent += 1
         return out

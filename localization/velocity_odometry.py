@@ -20,6 +20,17 @@ what the data shows (transients do not add up step after step); the solver carri
 an exact chain and s per state, so a window of many short steps is not charged a per
 step. Per step the offset increment bound is ``dc`` below.
 
+**A second pair condition for long turns.** The error is not proportional to the turn:
+a short turn can be missed by a large fraction of it (the response to a turn command),
+a long one only by the turn rate's scale error (3-8 % on MRCLAM). One line a + r S
+through both is loose for long turns, so the same pair condition also holds with a
+larger transient and a smaller turn fraction, |E(t1) - E(t0)| <= a2 + b dt + b_m
+int|v| + r2 int|w| (+ w_cap U). Both hold at once, so the heading at t1 is within the
+smaller of the two bounds of the heading at t0 plus the commanded turn: ``dw`` below,
+used by the solver as a chain on the headings themselves (next to the offset chain)
+and by the prediction (a blind stretch with a long turn: 0.12 + 0.3 x 3 rad against
+0.17 + 0.12 x 3 rad).
+
 **Position error model.** The displacement over a step is D = int v u(theta) with u the
 unit vector, so each component lies in L * cos(Phi) (resp. sin), L = int v >= 0 the true
 path length and Phi the hull of the headings inside the step, plus a slack e for pushes
@@ -140,6 +151,7 @@ class StepBounds:
     """Interval data of a step, as the solver uses it."""
 
     dc: float  # offset increment bound (rad)
+    dw: float  # bound of E(t1) - E(t0) over any two instants of the step (rad)
     hmin: float  # commanded heading hull inside the step, relative to its start (rad)
     hmax: float
     l_lo: float  # path length bounds (m)
@@ -152,20 +164,24 @@ def step_bounds(st: StepIntegral, cfg) -> StepBounds:
     """The error model of the module doc with the bounds of ``cfg``
     (a ``RangeBearingCPConfig``)."""
     b = bounds_arrays(*(np.array([v]) for v in (st.dt, st.s, st.turn, st.unknown, st.dist)), cfg)
-    return StepBounds(float(b[0][0]), st.hmin, st.hmax, *(float(v[0]) for v in b[1:]))
+    return StepBounds(
+        float(b[0][0]), float(b[1][0]), st.hmin, st.hmax, *(float(v[0]) for v in b[2:])
+    )
 
 
 def bounds_arrays(dt, s, turn, unknown, dist, cfg) -> tuple[np.ndarray, ...]:
-    """(dc, l_lo, l_hi, slack, cap) of steps given as arrays (module doc's model)."""
-    dc = cfg.heading_drift_radps * dt + cfg.heading_drift_per_m * dist
-    dc = dc + cfg.heading_turn_rel * turn
-    dc = dc + cfg.yaw_rate_cap_radps * unknown + GUARD
+    """(dc, dw, l_lo, l_hi, slack, cap) of steps given as arrays (module doc's model)."""
+    base = cfg.heading_drift_radps * dt + cfg.heading_drift_per_m * dist
+    base = base + cfg.yaw_rate_cap_radps * unknown + GUARD
+    dc = base + cfg.heading_turn_rel * turn
+    long = base + cfg.heading_turn_rel_long * turn + cfg.heading_transient_long_rad
+    dw = np.where(dt > 0.0, np.minimum(dc + cfg.heading_transient_rad, long), GUARD)
     p = cfg.path_abs_m + cfg.path_drift_mps * dt
     l_hi = (1.0 + cfg.speed_rel_hi) * s + p + cfg.speed_cap_mps * unknown
     l_lo = np.where(unknown > 0.0, 0.0, np.maximum(0.0, (1.0 - cfg.speed_rel_lo) * s - p))
     slack = cfg.slack_abs_m + cfg.slack_drift_mps * dt
     cap = cfg.speed_cap_mps * dt + cfg.slack_abs_m
-    return dc, l_lo, l_hi, slack, cap
+    return dc, dw, l_lo, l_hi, slack, cap
 
 
 def displacements(
@@ -179,12 +195,18 @@ def displacements(
     l_hi: np.ndarray,
     slack: np.ndarray,
     cap: np.ndarray,
+    also: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Intervals (dx_lo, dx_hi, dy_lo, dy_hi) of steps whose headings lie in
     ``theta0 + [hmin, hmax] + [c_lo, c_hi] +- half_a`` (the offset already widened by
-    the step's dc), path lengths in [l_lo, l_hi] (>= 0)."""
+    the step's dc) and, if given, in ``also`` (lo, hi) (the same headings bounded
+    another way, in the same representation), path lengths in [l_lo, l_hi] (>= 0)."""
     pl, ph = K.add(theta0 + hmin, theta0 + hmax, c_lo, c_hi)
     pl, ph = K.add(pl, ph, -half_a - GUARD, half_a + GUARD)
+    if also is not None:  # where the two meet (where they do not, the piece is dead)
+        ml, mh = np.maximum(pl, also[0]), np.minimum(ph, also[1])
+        ok = ml <= mh
+        pl, ph = np.where(ok, ml, pl), np.where(ok, mh, ph)
     cl, ch, sl, sh = K.cos_sin(pl, ph)
     xl, xh = K.mul(l_lo, l_hi, cl, ch)
     yl, yh = K.mul(l_lo, l_hi, sl, sh)
@@ -199,17 +221,20 @@ def predict_boxes(b: np.ndarray, theta0: np.ndarray, steps: list[StepIntegral], 
     step model of the module doc forward (what a robot publishes between observations)."""
     f = np.array([(s.dt, s.s, s.h, s.hmin, s.hmax, s.turn, s.unknown, s.dist) for s in steps]).T
     dt, s, h, hmin, hmax, turn, unknown, dist = f.reshape(8, -1)
-    dc, l_lo, l_hi, slack, cap = bounds_arrays(dt, s, turn, unknown, dist, cfg)
+    dc, dw, l_lo, l_hi, slack, cap = bounds_arrays(dt, s, turn, unknown, dist, cfg)
     half_a = 0.5 * cfg.heading_transient_rad
     cl, ch = K.add(b[:, 0, 3], b[:, 1, 3], -dc, dc)
-    dxl, dxh, dyl, dyh = displacements(theta0, hmin, hmax, cl, ch, half_a, l_lo, l_hi, slack, cap)
+    # the headings inside the steps, also from the state's own heading (the pair bound)
+    hl, hh = K.add(b[:, 0, 2] + hmin, b[:, 1, 2] + hmax, -dw, dw)
+    dxl, dxh, dyl, dyh = displacements(
+        theta0, hmin, hmax, cl, ch, half_a, l_lo, l_hi, slack, cap, (hl, hh)
+    )
     out = np.empty((b.shape[0], 2, 3))
     out[:, 0, 0], out[:, 1, 0] = K.add(b[:, 0, 0], b[:, 1, 0], dxl, dxh)
     out[:, 0, 1], out[:, 1, 1] = K.add(b[:, 0, 1], b[:, 1, 1], dyl, dyh)
     # heading: through the offset, and from the state's own heading
     tl, th = K.add(theta0 + h + cl, theta0 + h + ch, -half_a - GUARD, half_a + GUARD)
-    w = dc + np.where(dt > 0.0, 2.0 * half_a, 0.0) + GUARD  # no transient at the state itself
-    dl, dh = K.add(b[:, 0, 2] + h, b[:, 1, 2] + h, -w, w)
+    dl, dh = K.add(b[:, 0, 2] + h, b[:, 1, 2] + h, -dw, dw)
     out[:, 0, 2], out[:, 1, 2] = np.maximum(tl, dl), np.minimum(th, dh)
     return out
 

@@ -81,9 +81,9 @@ class PeerFix:
 @dataclass(frozen=True, slots=True)
 class PeerSighting:
     """Robot ``observer`` measured robot ``robot`` at ``range_m``, ``bearing_rad`` (in the
-    observer's body frame) at ``stamp_ns``, when its own guaranteed box was ``box``: for
-    the seen robot's CP, an observation of itself (cooperative CP on real robots).
-    Decoding refuses NaN."""
+    observer's body frame) at ``stamp_ns``, when its own guaranteed box was ``box`` (and
+    its ``pieces``): for the seen robot's CP, an observation of itself (cooperative CP on
+    real robots). Decoding refuses NaN."""
 
     FLOATS: ClassVar[str] = "no_nan"
 
@@ -93,3 +93,7 @@ class PeerSighting:
     range_m: float
     bearing_rad: float
     box: PoseBox
+    #: the observer's pieces whose hull is ``box`` (heading slices, each with its own
+    #: position box; the observer is in one of them), 6 numbers each: x lo, x hi, y lo,
+    #: y hi, theta lo, theta hi (empty: the box alone)
+    pieces: tuple[float, ...] = ()

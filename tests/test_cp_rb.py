@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from localization.chain import leave_out, projections, relaxed_chain_at
-from localization.cp_config import RangeBearingCPConfig
+from localization.cp_config import RangeBearingCPConfig, poly
 from localization.cp_rb import RangeBearingCP
 from localization.velocity_odometry import CommandIntegrator, predict_boxes
 
@@ -25,10 +25,25 @@ LANDMARKS = {6 + i: (x, y, 0.0, 0.0) for i, (x, y) in enumerate(
 )}  # fmt: skip
 
 
+def _check_heading_model(cfg, e, we, ve, dt) -> None:
+    """The world's heading error ``e`` keeps both pair conditions (velocity_odometry)."""
+    turn = np.concatenate([[0.0], np.cumsum(np.abs(we[:-1]) * dt)])
+    dist = np.concatenate([[0.0], np.cumsum(np.abs(ve[:-1]) * dt)])
+    for k in range(1, e.size, 7):
+        d = np.abs(e[k:] - e[:-k])
+        base = cfg.heading_drift_radps * k * dt + cfg.heading_drift_per_m * (dist[k:] - dist[:-k])
+        tn = turn[k:] - turn[:-k]
+        assert np.all(d <= cfg.heading_transient_rad + base + cfg.heading_turn_rel * tn + 1e-9)
+        long = cfg.heading_transient_long_rad + base + cfg.heading_turn_rel_long * tn
+        assert np.all(d <= long + 1e-9)
+
+
 class World:
     """A robot driving by commands with errors inside the model's bounds (0.9 of them)."""
 
-    def __init__(self, seed: int, cfg: RangeBearingCPConfig, seconds: float = 30.0) -> None:
+    def __init__(
+        self, seed: int, cfg: RangeBearingCPConfig, seconds: float = 30.0, long_turns: bool = False
+    ) -> None:
         rng = np.random.default_rng(seed)
         self.cfg, self.rng = cfg, rng
         dt = 0.01
@@ -37,22 +52,24 @@ class World:
         # commands: 1 s segments of v in {0, 0.05, 0.086}, w in {-0.4, 0, 0.3}
         seg = (t // 1.0).astype(int)
         v = rng.choice([0.0, 0.05, 0.086], seg.max() + 1)[seg]
-        w = rng.choice([-0.4, 0.0, 0.0, 0.3], seg.max() + 1)[seg]
+        w = rng.choice([-0.4, 0.0, 0.0, 0.3] if not long_turns else [0.3, 0.4], seg.max() + 1)[seg]
         self.cmd = np.column_stack([t, v, w])
         lag = cfg.command_lag_s
         i = np.clip(np.searchsorted(t, t - lag, side="right") - 1, 0, n - 1)
         we, ve = np.where(t >= lag, w[i], 0.0), np.where(t >= lag, v[i], 0.0)
-        # heading error: drift at 0.85 of (b + r|w|), sign changing every 2 s; transient
-        # piecewise constant in +-0.4 a
-        sd = rng.choice([-1.0, 1.0], n // 200 + 2)[(t // 2.0).astype(int)]
+        # heading error: drift at 0.85 of (b + b_m |v| + r|w|), its sign alternating every
+        # 1 s (so that the long-turn bound a2 + r2 S holds too: checked below);
+        # transient piecewise constant in +-0.4 a
+        # long_turns: turning all the time, the drift of one sign at 0.85 of the long-turn
+        # bound's r2 (the edge of the second pair condition over long spans)
+        sd = np.where((t // 1.0 + rng.integers(2)) % 2 == 0, 1.0, -1.0)
+        r = cfg.heading_turn_rel
+        if long_turns:
+            sd, r = np.full(n, rng.choice([-1.0, 1.0])), cfg.heading_turn_rel_long
         drift = np.cumsum(
             0.85
             * sd
-            * (
-                cfg.heading_drift_radps
-                + cfg.heading_drift_per_m * np.abs(ve)
-                + cfg.heading_turn_rel * np.abs(we)
-            )
+            * (cfg.heading_drift_radps + cfg.heading_drift_per_m * np.abs(ve) + r * np.abs(we))
             * dt
         )
         trans = (
@@ -60,6 +77,7 @@ class World:
         )
         th0 = rng.uniform(-math.pi, math.pi)
         self.th = th0 + np.cumsum(we * dt) - we[0] * dt + drift + trans
+        _check_heading_model(cfg, self.th - np.cumsum(we * dt), we, ve, dt)
         speed = ve * rng.uniform(
             1.0 - 0.9 * min(cfg.speed_rel_lo, 0.9), 1.0 + 0.9 * cfg.speed_rel_hi
         )
@@ -82,15 +100,26 @@ class World:
             d = math.hypot(lx - x, ly - y)
             if d > max_range or d < 0.3:
                 continue
-            u = rng.uniform(1.0 - 0.9 * c.range_rel_lo, 1.0 + 0.9 * c.range_rel_hi)
             e = rng.uniform(-0.9, 0.9) * (c.bearing_rad + c.bearing_lateral_m / d)
             b = math.atan2(ly - y, lx - x) - th + common + e
             if c.range_model == "depth":  # the camera reports r cos(bearing measured)
                 if math.cos(b) < 0.35:  # outside its field of view
                     continue
                 d *= math.cos(b)
-            out.append((s, d / u, math.remainder(b, TAU)))
+            out.append((s, _measured(c, d, rng.uniform(0.05, 0.95)), math.remainder(b, TAU)))
         return out
+
+
+def _measured(c: RangeBearingCPConfig, d: float, f: float) -> float:
+    """A measured range whose bounds hold ``d`` at the fraction ``f`` of their width
+    (bisection: rho + lo(rho) + f (hi(rho) - lo(rho)) grows with rho)."""
+    lo, hi = 0.0, 2.0 * d + 1.0
+    for _ in range(60):
+        rho = 0.5 * (lo + hi)
+        x = rho + poly(c.range_lo_poly, rho)
+        x += f * (poly(c.range_hi_poly, rho) - poly(c.range_lo_poly, rho))
+        lo, hi = (rho, hi) if x < d else (lo, rho)
+    return 0.5 * (lo + hi)
 
 
 def _drive(world: World, cp: RangeBearingCP, period: float = 0.25, start: float = 0.5,
@@ -144,6 +173,34 @@ def test_boxes_between_frames_hold_the_truth():
     assert misses == 0
 
 
+def test_long_blind_turns_keep_the_truth_with_a_narrower_heading():
+    """A robot turning all the time, its heading error at the edge of the long-turn bound
+    (a2 + r2 S) over a 25 s blind stretch: the boxes hold the truth, and the heading
+    predicted at the stretch's end is narrower than with the short-turn bound alone."""
+    cfg = RangeBearingCPConfig()
+    short = replace(cfg, heading_turn_rel_long=cfg.heading_turn_rel,
+                    heading_transient_long_rad=cfg.heading_transient_rad)  # fmt: skip
+    widths = {}
+    for name, c in (("both", cfg), ("short", short)):
+        world = World(6, cfg, seconds=40.0, long_turns=True)
+        cp = RangeBearingCP(c, LANDMARKS, 1)
+        before = {}
+
+        def peek(cp, t, before=before):
+            if abs(t - 30.0) < 1e-9:
+                cp.advance(t)
+                before["box"] = cp.box()
+            return []
+
+        res = _drive(world, cp, gap=(5.0, 30.0), extra=peek)
+        assert all(ok for _, ok, _ in res), name
+        b = before["box"]
+        x, y, th = world.pose(30.0)
+        assert b.contains(x, y, th), name
+        widths[name] = b.th[1] - b.th[0]
+    assert widths["both"] < widths["short"] - 1.0, widths
+
+
 def test_gross_outlier_is_voted_out_and_named():
     cfg = RangeBearingCPConfig()
     world = World(4, cfg)
@@ -166,7 +223,7 @@ def test_gross_outlier_is_voted_out_and_named():
 
 
 def test_heading_lost_in_a_long_gap_recovers():
-    cfg = replace(RangeBearingCPConfig(), heading_drift_radps=0.03)  # drifts more in time
+    cfg = replace(RangeBearingCPConfig(), heading_drift_radps=0.06)  # drifts more in time
     world = World(5, cfg, seconds=60.0)
     cp = RangeBearingCP(cfg, LANDMARKS, 1)
     before = {}
