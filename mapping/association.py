@@ -94,8 +94,9 @@ class SampleAssociation:
             raise ValueError("IR mounts must be (K, 3): x, y, yaw of each sensor on the robot")
         self.config = config or AssociationConfig()
         # Each scan goes into the map, then into the reference map: the second time its
-        # cell updates are taken from the first (mapping.ir_memo; at most 1 M, 12 MB).
-        self.model = IrInverseModel(inverse or InverseModelConfig(), reuse_cells=1_000_000)
+        # cell updates are taken from the first (mapping.ir_memo; at most 2 M, 24 MB: the
+        # scans of ref_lag_m at 10-20 Hz; the drift branches, at other poses, do not use it).
+        self.model = IrInverseModel(inverse or InverseModelConfig(), reuse_cells=2_000_000)
         self.grid = OccupancyGrid(grid_config)
         self._ref = self.grid.copy()
         self._ref_upto = 0

@@ -167,8 +167,12 @@ class DriftBank:
     ) -> None:
         self.cfg = cfg
         self.drift, self.spacing, self.start = drift, spacing, start
-        self.branches = [Branch(drift + spacing * m, m, np.array(pose, dtype=float), ref.copy())
+        # Until the first scan after the start comes of age every branch's map takes the
+        # same scans at the same poses: one map, shared, copied when they part (exact).
+        shared = ref.copy()
+        self.branches = [Branch(drift + spacing * m, m, np.array(pose, dtype=float), shared)
                          for m in cfg.drift_steps]  # fmt: skip
+        self.shared = True
         self.ref_upto = ref_upto
         self.threshold = cfg.confirm_nats + math.log(max(len(self.branches), 1))
         self.next_travel = next_travel
@@ -195,12 +199,22 @@ class DriftBank:
         if upto <= a:
             return 0
         cut = min(max(self.start, a), upto)
-        for b in self.branches:
-            if cut > a:  # before the start: the association's poses
-                updates += model.integrate(b.ref, rec.beams(a, cut))
-            if upto > cut:
+        if cut > a:  # before the start: the association's poses, the same for every branch
+            beams = rec.beams(a, cut)
+            if self.shared:  # counted as the separate maps were
+                updates += len(self.branches) * model.integrate(self.branches[0].ref, beams,
+                                                                reuse=False)  # fmt: skip
+            else:
+                for b in self.branches:
+                    updates += model.integrate(b.ref, beams, reuse=False)
+        if upto > cut:
+            if self.shared:  # the branches part: each its own copy from now on
+                for b in self.branches[1:]:
+                    b.ref = b.ref.copy()
+                self.shared = False
+            for b in self.branches:
                 own = np.array(b.poses[cut - self.start : upto - self.start])
-                updates += model.integrate(b.ref, rec.beams(cut, upto, own))
+                updates += model.integrate(b.ref, rec.beams(cut, upto, own), reuse=False)
         self.ref_upto = upto
         return updates
 

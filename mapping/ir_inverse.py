@@ -203,7 +203,12 @@ class IrInverseModel:
         return h, reach, ends
 
     def _cone_updates(
-        self, grid: OccupancyGrid, beams: Beams, h: np.ndarray, reach: np.ndarray
+        self,
+        grid: OccupancyGrid,
+        beams: Beams,
+        h: np.ndarray,
+        reach: np.ndarray,
+        reuse: bool = True,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Grow the grid to hold the beams' cones, then their cells and increments."""
         grow_for_cones(grid, beams.x, beams.y, h, reach)
@@ -226,7 +231,7 @@ class IrInverseModel:
                 grid, self.config, (x[i], y[i]), angle[i], hit[i], z[i], h[i], cells
             )
 
-        if self._memo is None:
+        if self._memo is None or not reuse:
             return compute(slice(None))[1:]
         rows = np.column_stack([x, y, angle, beams.range_m, beams.kind, beams.sigma_rad])
         return self._memo.updates(grid, rows, compute)
@@ -251,18 +256,20 @@ class IrInverseModel:
             start = stop
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
-    def integrate(self, grid: OccupancyGrid, beams: Beams) -> int:
+    def integrate(self, grid: OccupancyGrid, beams: Beams, reuse: bool = True) -> int:
         """Apply the beams to the grid, a bounded part at a time (each part's updates
         applied before the next is computed, so memory stays bounded); returns the number
-        of cell updates."""
+        of cell updates. ``reuse=False``: beams no other grid will take (the drift
+        hypotheses' own poses) are neither looked up in nor kept by the memo."""
         if len(beams) == 0:
             return 0
         h, reach, ends = self._parts(beams, grid.resolution)
         if len(ends) == 1:
-            return grid.add(*self._cone_updates(grid, beams, h, reach))
+            return grid.add(*self._cone_updates(grid, beams, h, reach, reuse))
         total, start = 0, 0
         for stop in ends:
             sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))
-            total += grid.add(*self._cone_updates(grid, sub, h[start:stop], reach[start:stop]))
+            total += grid.add(*self._cone_updates(grid, sub, h[start:stop], reach[start:stop],
+                                                  reuse))  # fmt: skip
             start = stop
         return total
