@@ -246,14 +246,15 @@ class SampleAssociation:
         r.append(self._estimate.copy(), sigma, ranges, kinds, self._travel, stamp_ns)
         if self._bank is not None:
             self._bank.record()
-        self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1))
+        self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1), "keep")
         upto = r.older_than(self._ref_upto, self._travel - cfg.ref_lag_m)
         # At most reinsert_per_step scans a step (after turning on the spot many scans
         # come of age at once; the reference map may lag a few steps more).
         upto = min(upto, self._ref_upto + cfg.reinsert_per_step)
         aged = upto - self._ref_upto
         if upto > self._ref_upto:
-            self.cell_updates += self.model.integrate(self._ref, r.beams(self._ref_upto, upto))
+            self.cell_updates += self.model.integrate(self._ref, r.beams(self._ref_upto, upto),
+                                                      "take")  # fmt: skip
             self._ref_upto = upto
         if self._bank is not None:
             # The branches take what is left of the step's budget (at least one scan each).
@@ -388,7 +389,7 @@ class SampleAssociation:
                 b.grid, b.ref_upto = b.ref.copy(), b.cursor
             target = b.ref if b.grid is None else b.grid
             end = stop if b.grid is not None else min(stop, cut)
-            self.cell_updates += self.model.integrate(target, r.beams(b.cursor, end))
+            self.cell_updates += self.model.integrate(target, r.beams(b.cursor, end), "off")
             b.cursor = end
         if b.cursor < len(r):
             return

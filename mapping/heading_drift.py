@@ -203,18 +203,18 @@ class DriftBank:
             beams = rec.beams(a, cut)
             if self.shared:  # counted as the separate maps were
                 updates += len(self.branches) * model.integrate(self.branches[0].ref, beams,
-                                                                reuse=False)  # fmt: skip
+                                                                memo="off")  # fmt: skip
             else:
                 for b in self.branches:
-                    updates += model.integrate(b.ref, beams, reuse=False)
+                    updates += model.integrate(b.ref, beams, memo="off")
         if upto > cut:
             if self.shared:  # the branches part: each its own copy from now on
                 for b in self.branches[1:]:
                     b.ref = b.ref.copy()
                 self.shared = False
-            for b in self.branches:
-                own = np.array(b.poses[cut - self.start : upto - self.start])
-                updates += model.integrate(b.ref, rec.beams(cut, upto, own), reuse=False)
+            own = [np.array(b.poses[cut - self.start : upto - self.start]) for b in self.branches]
+            updates += model.integrate_each([b.ref for b in self.branches],
+                                            rec.beams_each(cut, upto, own))  # fmt: skip
         self.ref_upto = upto
         return updates
 

@@ -25,6 +25,7 @@ beams costs a few dozen numpy calls.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -81,6 +82,33 @@ def _lattice_rows(
     return kb, t, np.minimum(big, j_n[kb]), k_n
 
 
+@dataclass(frozen=True)
+class Lattice:
+    """The lattice points of a batch of cones as far as they depend on the cones' lengths
+    and half-angles alone, not on where the cones lie: the rows (beam, t, highest |j|,
+    each beam's first row), the points per row and each point's offset
+    j s along its row. The same scans at other poses (the drift hypotheses' maps) share
+    it."""
+
+    kb: np.ndarray
+    t: np.ndarray
+    big: np.ndarray
+    first: np.ndarray
+    cnt: np.ndarray
+    lat: np.ndarray
+
+
+def lattice(reach: np.ndarray, h: np.ndarray, res: float) -> Lattice:
+    """The :class:`Lattice` of cones of lengths ``reach`` and half-angles ``h``."""
+    spacing = 0.7 * res
+    kb, t, big, k_n = _lattice_rows(reach, np.tan(h), res, spacing)
+    first = np.cumsum(k_n) - k_n
+    cnt = 2 * big + 1
+    lat = np.arange(int(cnt.sum()), dtype=np.int64)
+    lat -= np.repeat(np.cumsum(cnt) - cnt + big, cnt)
+    return Lattice(kb, t, big, first, cnt, lat * spacing)
+
+
 def cone_cells(
     grid: OccupancyGrid,
     x: np.ndarray,
@@ -88,15 +116,19 @@ def cone_cells(
     angle: np.ndarray,
     h: np.ndarray,
     reach: np.ndarray,
+    lat: Lattice | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The cells a lattice point of a beam's cone falls in, each (beam, cell) once,
-    ordered by beam then row then column. The grid must hold them. Returns the cells
-    per beam, and the cells' row and column (as floats) and flat index."""
+    ordered by beam then row then column. The grid must hold them. ``lat``: the cones'
+    :func:`lattice` if it is known. Returns the cells per beam, and the cells' row and
+    column (as floats) and flat index."""
     res = grid.resolution
     ox, oy = grid.origin
     spacing = 0.7 * res
     ca, sa = np.cos(angle), np.sin(angle)
-    kb, t, big, k_n = _lattice_rows(reach, np.tan(h), res, spacing)
+    if lat is None:
+        lat = lattice(reach, h, res)
+    kb, t, big, first, cnt = lat.kb, lat.t, lat.big, lat.first, lat.cnt
     # The start of each row (world), and its two end points' cells: the beam's box.
     sa_k, ca_k = sa[kb], ca[kb]
     ax = x[kb] + t * ca_k
@@ -104,7 +136,6 @@ def cone_cells(
     half = big * spacing
     ends_c = [np.floor((ax + s * half * sa_k - ox) / res) for s in (-1.0, 1.0)]
     ends_r = [np.floor((ay + s * half * ca_k - oy) / res) for s in (-1.0, 1.0)]
-    first = np.cumsum(k_n) - k_n
     c0 = np.minimum.reduceat(np.minimum(*ends_c), first) - 1.0
     c1 = np.maximum.reduceat(np.maximum(*ends_c), first) + 1.0
     r0 = np.minimum.reduceat(np.minimum(*ends_r), first) - 1.0
@@ -114,18 +145,14 @@ def cone_cells(
     off = np.cumsum(area) - area
     # Every lattice point (row k of a beam, column j), with the reference's arithmetic,
     # as the index row * width + col + base into the beams' bitmaps (exact in float64).
-    cnt = 2 * big + 1
-    lat = np.arange(int(cnt.sum()), dtype=np.int64)
-    lat -= np.repeat(np.cumsum(cnt) - cnt + big, cnt)
-    lat = lat * spacing
     tmp = np.repeat(sa_k, cnt)
-    tmp *= lat
+    tmp *= lat.lat
     px = np.repeat(ax, cnt)
     px -= tmp
     px -= ox
     px /= res
     np.floor(px, out=px)
-    np.multiply(np.repeat(ca_k, cnt), lat, out=tmp)
+    np.multiply(np.repeat(ca_k, cnt), lat.lat, out=tmp)
     py = np.repeat(ay, cnt)
     py += tmp
     py -= oy

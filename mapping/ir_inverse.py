@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
-from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones
+from mapping.ir_cone import Lattice, attenuate, cell_updates, cone_cells, grow_for_cones, lattice
 from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
 
@@ -47,6 +47,7 @@ KIND_HIT = 0
 KIND_CLEAR = 1
 _STATUS_KIND = {"ok": KIND_HIT, "too_far": KIND_CLEAR, "no_return": KIND_CLEAR}
 _FIELDS = ("x", "y", "angle", "range_m", "kind", "sigma_rad")
+_MEMO_MODES = ("use", "keep", "take", "off")
 
 
 @dataclass(frozen=True)
@@ -208,9 +209,11 @@ class IrInverseModel:
         beams: Beams,
         h: np.ndarray,
         reach: np.ndarray,
-        reuse: bool = True,
+        memo: str = "use",
+        lat: Lattice | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Grow the grid to hold the beams' cones, then their cells and increments."""
+        """Grow the grid to hold the beams' cones, then their cells and increments
+        (``lat``: the lattice of the cones used, if known; not with the memo)."""
         grow_for_cones(grid, beams.x, beams.y, h, reach)
         use = reach > 0  # a cone of no length has no lattice point
         if not use.all():
@@ -231,10 +234,11 @@ class IrInverseModel:
                 grid, self.config, (x[i], y[i]), angle[i], hit[i], z[i], h[i], cells
             )
 
-        if self._memo is None or not reuse:
-            return compute(slice(None))[1:]
+        if self._memo is None or memo == "off":
+            cells = cone_cells(grid, x, y, angle, h, reach, lat)
+            return cell_updates(grid, self.config, (x, y), angle, hit, z, h, cells)[1:]
         rows = np.column_stack([x, y, angle, beams.range_m, beams.kind, beams.sigma_rad])
-        return self._memo.updates(grid, rows, compute)
+        return self._memo.updates(grid, rows, compute, memo != "take", memo != "keep")
 
     def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
         """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit.
@@ -256,20 +260,43 @@ class IrInverseModel:
             start = stop
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
-    def integrate(self, grid: OccupancyGrid, beams: Beams, reuse: bool = True) -> int:
+    def integrate(self, grid: OccupancyGrid, beams: Beams, memo: str = "use") -> int:
         """Apply the beams to the grid, a bounded part at a time (each part's updates
         applied before the next is computed, so memory stays bounded); returns the number
-        of cell updates. ``reuse=False``: beams no other grid will take (the drift
-        hypotheses' own poses) are neither looked up in nor kept by the memo."""
+        of cell updates. ``memo`` (with ``reuse_cells``): "keep" for the grid that takes
+        the beams first (updates looked up and kept), "take" for the one that takes them
+        second, in order (looked up; a hit forgets its entry and the older ones), "use"
+        both, "off" for beams no other grid will take (:mod:`mapping.ir_memo`)."""
+        if memo not in _MEMO_MODES:
+            raise ValueError(f"memo must be one of {_MEMO_MODES}, got {memo!r}")
         if len(beams) == 0:
             return 0
         h, reach, ends = self._parts(beams, grid.resolution)
         if len(ends) == 1:
-            return grid.add(*self._cone_updates(grid, beams, h, reach, reuse))
+            return grid.add(*self._cone_updates(grid, beams, h, reach, memo))
         total, start = 0, 0
         for stop in ends:
             sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))
             total += grid.add(*self._cone_updates(grid, sub, h[start:stop], reach[start:stop],
-                                                  reuse))  # fmt: skip
+                                                  memo))  # fmt: skip
             start = stop
         return total
+
+    def integrate_each(self, grids: list[OccupancyGrid], beams: list[Beams]) -> int:
+        """``integrate(grids[i], beams[i], memo="off")`` for every i, bit for bit; beams
+        that share their range, kind and sigma arrays (the same scans at other poses: the
+        drift hypotheses' maps) share the lattice of their cones. Returns the cell updates."""
+        b0 = beams[0] if beams else None
+        if b0 is None or len(b0) == 0 or any(
+            b.range_m is not b0.range_m or b.kind is not b0.kind
+            or b.sigma_rad is not b0.sigma_rad or g.resolution != grids[0].resolution
+            for g, b in zip(grids, beams, strict=True)
+        ):  # fmt: skip
+            return sum(self.integrate(g, b, "off") for g, b in zip(grids, beams, strict=True))
+        h, reach, ends = self._parts(b0, grids[0].resolution)
+        if len(ends) > 1:
+            return sum(self.integrate(g, b, "off") for g, b in zip(grids, beams, strict=True))
+        use = reach > 0  # as _cone_updates keeps them
+        lat = lattice(reach[use], h[use], grids[0].resolution) if use.any() else None
+        return sum(grid.add(*self._cone_updates(grid, b, h, reach, "off", lat))
+                   for grid, b in zip(grids, beams, strict=True))  # fmt: skip
