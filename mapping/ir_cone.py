@@ -16,7 +16,9 @@ at a fraction of its cost:
   (free before the hit, occupied at it, inside the eq. 6 cone) are picked in one pass,
   and eq. 6's power and the log-odds are computed for those only. The wrap of the angle
   is ``numerics.angles.wrap_angles``' ``np.mod`` done as the one add or subtract it
-  amounts to (exact: :func:`_wrap_abs`).
+  amounts to for beams whose angles lie in (-2 pi, 2 pi), and as fmod's exact remainder
+  from a split 2 pi for the others (the association's headings are not wrapped: after
+  loops they reach tens of radians), both exact (:func:`_wrap_abs`).
 
 Every step is a whole-array numpy operation over all beams of a call, so a scan of six
 beams costs a few dozen numpy calls.
@@ -172,17 +174,45 @@ def cone_cells(
     return per, row, col, (row * grid.shape[1] + col).astype(np.int64)
 
 
-def _wrap_abs(a: np.ndarray) -> np.ndarray:
+# 2 pi in two parts, the first of 24 bits: q * _TWO_PI_HI and q * _TWO_PI_LO are exact
+# for integers |q| <= 2**20 (24 + 20 and 29 + 20 bits).
+_TWO_PI_HI = math.ldexp(math.floor(math.ldexp(TWO_PI, 21)), -21)
+_TWO_PI_LO = TWO_PI - _TWO_PI_HI  # exact (Sterbenz)
+_Q_MAX = 2.0**20
+
+
+def _mod_two_pi(a: np.ndarray) -> np.ndarray:
+    """np.mod(a, 2 pi), exactly, at a fraction of fmod's cost: fmod(a, m) is a - q m with
+    q = trunc(a / m), always representable; a - q m_hi is exact (both multiples of the
+    ulp of m's last bit, the difference below 8) and so is the one rounding of (a - q
+    m_hi) - q m_lo; the quotient can only be one too far from 0 (the division rounded up
+    to an integer), which leaves the remainder of the wrong sign, and one exact step
+    corrects it. Then numpy's rule: a negative remainder gets m added."""
+    q = np.trunc(a / TWO_PI)
+    r = a - q * _TWO_PI_HI
+    r -= q * _TWO_PI_LO
+    off = np.flatnonzero(((r < 0.0) & (a > 0.0)) | ((r > 0.0) & (a < 0.0)))
+    if len(off):
+        r[off] -= np.copysign(TWO_PI, r[off])
+    np.add(r, TWO_PI, out=r, where=r < 0.0)
+    huge = np.flatnonzero(~(np.abs(q) <= _Q_MAX))  # and NaN: numpy's own
+    if len(huge):
+        r[huge] = np.mod(a[huge], TWO_PI)
+    return r
+
+
+def _wrap_abs(a: np.ndarray, near: bool = False) -> np.ndarray:
     """|wrap_angles(a)|, exactly: np.mod(a + pi, 2 pi) (numpy's fmod-based remainder)
-    done as one add or subtract where a + pi lies in [-2 pi, 4 pi), np.mod elsewhere."""
+    minus pi. ``near``: every a + pi lies in [-2 pi, 4 pi) (the beams' angles lie in
+    (-2 pi, 2 pi)), where the remainder is one add or subtract; else
+    :func:`_mod_two_pi`. (Its -pi is pi's wrap; the absolute value makes them one.)"""
     a = a + math.pi
-    m = np.where(a < 0.0, a + TWO_PI, a)
-    np.subtract(m, TWO_PI, out=m, where=a >= TWO_PI)
-    far = np.flatnonzero((a < -TWO_PI) | (a >= 2.0 * TWO_PI))
-    if len(far):
-        m[far] = np.mod(a[far], TWO_PI)
+    if near:
+        m = np.where(a < 0.0, a + TWO_PI, a)
+        np.subtract(m, TWO_PI, out=m, where=a >= TWO_PI)
+    else:
+        m = _mod_two_pi(a)
     m -= math.pi
-    m[m == -math.pi] = math.pi
     return np.abs(m, out=m)
 
 
@@ -224,7 +254,8 @@ def cell_updates(
     # Eq. 6's angle: from the axis to the nearest point of the cell.
     alpha = np.arctan2(vy, vx, out=vy)
     alpha -= np.repeat(angle, per)
-    alpha = _wrap_abs(alpha)
+    # The beams' angles within (-2 pi, 2 pi) put alpha + pi within [-2 pi, 4 pi).
+    alpha = _wrap_abs(alpha, bool(np.max(np.abs(angle)) < TWO_PI - 1e-6))
     cell_radius = 0.7072 * res
     tmp = np.maximum(r, 1e-9, out=vx)
     np.divide(cell_radius, tmp, out=tmp)
