@@ -153,7 +153,7 @@ class OccupancyGrid:
             total = np.bincount(rel, weights=delta, minlength=span)
             mark = np.zeros(span, dtype=bool)
             mark[rel] = True
-            touched = np.flatnonzero(mark)
+            touched = mark.nonzero()[0]
             total = total[touched]
             touched += lo
         else:
@@ -161,7 +161,9 @@ class OccupancyGrid:
             total = np.bincount(inv, weights=delta)
         flat = self.logodds.reshape(-1)
         total += flat[touched]
-        np.clip(total, self.config.l_min, self.config.l_max, out=total)
+        # np.clip, without its wrappers (the same values: lo < hi)
+        np.maximum(total, self.config.l_min, out=total)
+        np.minimum(total, self.config.l_max, out=total)
         flat[touched] = total
         self.updates += n
         return n

@@ -53,17 +53,17 @@ def grow_for_cones(
     """Grow the grid to hold every cone (its far corners lie reach / cos(h) away)."""
     ext = reach / np.cos(h) + 2 * grid.resolution
     grid.ensure(
-        float(np.min(x - ext)),
-        float(np.min(y - ext)),
-        float(np.max(x + ext)),
-        float(np.max(y + ext)),
+        float((x - ext).min()),
+        float((y - ext).min()),
+        float((x + ext).max()),
+        float((y + ext).max()),
     )
 
 
 def _runs(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(owner of each element, first element of each run) of runs of ``counts`` elements."""
-    starts = np.cumsum(counts) - counts
-    return np.repeat(np.arange(len(counts)), counts), starts
+    starts = counts.cumsum() - counts
+    return np.arange(len(counts)).repeat(counts), starts
 
 
 def _lattice_rows(
@@ -104,10 +104,10 @@ def lattice(reach: np.ndarray, h: np.ndarray, res: float) -> Lattice:
     """The :class:`Lattice` of cones of lengths ``reach`` and half-angles ``h``."""
     spacing = 0.7 * res
     kb, t, big, k_n = _lattice_rows(reach, np.tan(h), res, spacing)
-    first = np.cumsum(k_n) - k_n
+    first = k_n.cumsum() - k_n
     cnt = 2 * big + 1
     lat = np.arange(int(cnt.sum()), dtype=np.int64)
-    lat -= np.repeat(np.cumsum(cnt) - cnt + big, cnt)
+    lat -= (cnt.cumsum() - cnt + big).repeat(cnt)
     return Lattice(kb, t, big, first, cnt, lat * spacing)
 
 
@@ -147,30 +147,31 @@ def cone_cells(
     off = np.cumsum(area) - area
     # Every lattice point (row k of a beam, column j), with the reference's arithmetic,
     # as the index row * width + col + base into the beams' bitmaps (exact in float64).
-    tmp = np.repeat(sa_k, cnt)
+    tmp = sa_k.repeat(cnt)
     tmp *= lat.lat
-    px = np.repeat(ax, cnt)
+    px = ax.repeat(cnt)
     px -= tmp
     px -= ox
     px /= res
     np.floor(px, out=px)
-    np.multiply(np.repeat(ca_k, cnt), lat.lat, out=tmp)
-    py = np.repeat(ay, cnt)
+    np.multiply(ca_k.repeat(cnt), lat.lat, out=tmp)
+    py = ay.repeat(cnt)
     py += tmp
     py -= oy
     py /= res
     np.floor(py, out=py)
     py *= width
     py += px
-    py += np.repeat((off - r0 * width - c0)[kb], cnt)
+    py += (off - r0 * width - c0)[kb].repeat(cnt)
     mark = np.zeros(int(off[-1] + area[-1]), dtype=bool)
     mark[py.astype(np.intp)] = True
-    idx = np.flatnonzero(mark)
-    per = np.diff(np.searchsorted(idx, np.append(off, mark.size)))
-    local = idx - np.repeat(off, per)
+    idx = mark.nonzero()[0]
+    ends = idx.searchsorted(np.append(off, mark.size))
+    per = ends[1:] - ends[:-1]
+    local = idx - off.repeat(per)
     lr = np.floor(local / width)  # exact: integers far below 2**52
-    row = lr + np.repeat(r0, per)
-    col = local - lr * width + np.repeat(c0, per)
+    row = lr + r0.repeat(per)
+    col = local - lr * width + c0.repeat(per)
     return per, row, col, (row * grid.shape[1] + col).astype(np.int64)
 
 
@@ -191,11 +192,11 @@ def _mod_two_pi(a: np.ndarray) -> np.ndarray:
     q = np.trunc(a / TWO_PI)
     r = a - q * _TWO_PI_HI
     r -= q * _TWO_PI_LO
-    off = np.flatnonzero(((r < 0.0) & (a > 0.0)) | ((r > 0.0) & (a < 0.0)))
+    off = (((r < 0.0) & (a > 0.0)) | ((r > 0.0) & (a < 0.0))).nonzero()[0]
     if len(off):
         r[off] -= np.copysign(TWO_PI, r[off])
     np.add(r, TWO_PI, out=r, where=r < 0.0)
-    huge = np.flatnonzero(~(np.abs(q) <= _Q_MAX))  # and NaN: numpy's own
+    huge = (~(np.abs(q) <= _Q_MAX)).nonzero()[0]  # and NaN: numpy's own
     if len(huge):
         r[huge] = np.mod(a[huge], TWO_PI)
     return r
@@ -237,25 +238,25 @@ def cell_updates(
     col += 0.5
     col *= res
     vx = np.add(ox, col, out=col)
-    vx -= np.repeat(x, per)
+    vx -= x.repeat(per)
     row += 0.5
     row *= res
     vy = np.add(oy, row, out=row)
-    vy -= np.repeat(y, per)
+    vy -= y.repeat(per)
     r = np.hypot(vx, vy)
     w = max(config.hit_halfwidth_m, 0.75 * res)
     # free: r < z - w before a hit, r <= max range for a beam that saw nothing.
     lim = np.where(hit, z - w, math.nextafter(config.max_range_m, math.inf))
-    free = r < np.repeat(lim, per)
+    free = r < lim.repeat(per)
     with np.errstate(invalid="ignore"):
-        tmp = r - np.repeat(z, per)
+        tmp = r - z.repeat(per)
         occ = np.abs(tmp, out=tmp) <= w
     free |= occ
     # Eq. 6's angle: from the axis to the nearest point of the cell.
     alpha = np.arctan2(vy, vx, out=vy)
-    alpha -= np.repeat(angle, per)
+    alpha -= angle.repeat(per)
     # The beams' angles within (-2 pi, 2 pi) put alpha + pi within [-2 pi, 4 pi).
-    alpha = _wrap_abs(alpha, bool(np.max(np.abs(angle)) < TWO_PI - 1e-6))
+    alpha = _wrap_abs(alpha, bool(np.abs(angle).max() < TWO_PI - 1e-6))
     cell_radius = 0.7072 * res
     tmp = np.maximum(r, 1e-9, out=vx)
     np.divide(cell_radius, tmp, out=tmp)
@@ -263,9 +264,9 @@ def cell_updates(
     alpha -= np.arcsin(tmp, out=tmp)
     np.maximum(alpha, 0.0, out=alpha)
     alpha[r <= cell_radius] = 0.0
-    hb = np.repeat(h, per)
+    hb = h.repeat(per)
     free &= alpha <= hb
-    sel = np.flatnonzero(free)
+    sel = free.nonzero()[0]
     # Eq. 6 as attenuate() computes it: |p - 0.5| ** (1 + |alpha / 3 sigma|) (alpha >= 0).
     occ = occ[sel]
     e = alpha[sel]
@@ -277,5 +278,6 @@ def cell_updates(
     np.add(0.5, d, out=p, where=occ)
     dl = np.log(p)
     dl -= np.log1p(np.negative(p, out=p), out=p)
-    ends = np.searchsorted(sel, np.cumsum(per))
-    return np.diff(ends, prepend=0), flat[sel], dl
+    ends = sel.searchsorted(per.cumsum())
+    ends[1:] -= ends[:-1].copy()
+    return ends, flat[sel], dl

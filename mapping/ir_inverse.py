@@ -172,8 +172,8 @@ class IrInverseModel:
         c = self.config
         if not c.use_heading_uncertainty:
             return np.full(np.shape(sigma_rad), c.min_half_angle_rad)
-        return np.clip(c.sigma_multiple * np.asarray(sigma_rad, dtype=float),
-                       c.min_half_angle_rad, c.max_half_angle_rad)  # fmt: skip
+        h = np.maximum(c.sigma_multiple * np.asarray(sigma_rad, dtype=float), c.min_half_angle_rad)
+        return np.minimum(h, c.max_half_angle_rad, out=h)  # np.clip, without its wrappers
 
     def reach(self, beams: Beams, res: float) -> np.ndarray:
         """Length of each beam's cone: past the hit by the occupied band's half width,
@@ -193,7 +193,7 @@ class IrInverseModel:
         reach = self.reach(beams, res)
         spacing = 0.7 * res
         per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
-        csum = np.cumsum(per)
+        csum = per.cumsum()
         if csum[-1] <= self.max_samples_per_call:
             return h, reach, [len(beams)]
         ends, start = [], 0
