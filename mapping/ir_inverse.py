@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
-from mapping.ir_cone import Lattice, attenuate, cell_updates, cone_cells, grow_for_cones, lattice
+from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones, lattice
 from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
 
@@ -189,11 +189,7 @@ class IrInverseModel:
     def _parts(self, beams: Beams, res: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """(half-angles, reaches, the ends of the parts of at most
         ``max_samples_per_call`` lattice points, bounded as the rectangle k_n (2 j_n + 1))."""
-        h = self.half_angles(beams.sigma_rad)
-        reach = self.reach(beams, res)
-        spacing = 0.7 * res
-        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
-        csum = per.cumsum()
+        h, reach, csum = self._bound(beams, res)
         if csum[-1] <= self.max_samples_per_call:
             return h, reach, [len(beams)]
         ends, start = [], 0
@@ -203,6 +199,14 @@ class IrInverseModel:
             ends.append(start)
         return h, reach, ends
 
+    def _bound(self, beams: Beams, res: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(half-angles, reaches, cumulative bound on the beams' lattice points)."""
+        h = self.half_angles(beams.sigma_rad)
+        reach = self.reach(beams, res)
+        spacing = 0.7 * res
+        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
+        return h, reach, per.cumsum()
+
     def _cone_updates(
         self,
         grid: OccupancyGrid,
@@ -210,10 +214,8 @@ class IrInverseModel:
         h: np.ndarray,
         reach: np.ndarray,
         memo: str = "use",
-        lat: Lattice | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Grow the grid to hold the beams' cones, then their cells and increments
-        (``lat``: the lattice of the cones used, if known; not with the memo)."""
+        """Grow the grid to hold the beams' cones, then their cells and increments."""
         grow_for_cones(grid, beams.x, beams.y, h, reach)
         use = reach > 0  # a cone of no length has no lattice point
         if not use.all():
@@ -235,8 +237,7 @@ class IrInverseModel:
             )
 
         if self._memo is None or memo == "off":
-            cells = cone_cells(grid, x, y, angle, h, reach, lat)
-            return cell_updates(grid, self.config, (x, y), angle, hit, z, h, cells)[1:]
+            return compute(slice(None))[1:]
         rows = np.column_stack([x, y, angle, beams.range_m, beams.kind, beams.sigma_rad])
         return self._memo.updates(grid, rows, compute, memo != "take", memo != "keep")
 
@@ -283,20 +284,48 @@ class IrInverseModel:
         return total
 
     def integrate_each(self, grids: list[OccupancyGrid], beams: list[Beams]) -> int:
-        """``integrate(grids[i], beams[i], memo="off")`` for every i, bit for bit; beams
-        that share their range, kind and sigma arrays (the same scans at other poses: the
-        drift hypotheses' maps) share the lattice of their cones. Returns the cell updates."""
+        """``integrate(grids[i], beams[i], memo="off")`` for every i, bit for bit, for
+        beams that share their range, kind and sigma arrays (the same scans at other
+        poses: the drift hypotheses' maps): the grids of one origin and shape (after
+        growing) get their cells and increments from one computation (a beam's do not
+        depend on the other beams of a call). Returns the cell updates."""
         b0 = beams[0] if beams else None
-        if b0 is None or len(b0) == 0 or any(
+        res = grids[0].resolution if grids else 0.0
+        if b0 is None or len(b0) == 0 or len({id(g) for g in grids}) != len(grids) or any(
             b.range_m is not b0.range_m or b.kind is not b0.kind
-            or b.sigma_rad is not b0.sigma_rad or g.resolution != grids[0].resolution
+            or b.sigma_rad is not b0.sigma_rad or g.resolution != res
             for g, b in zip(grids, beams, strict=True)
         ):  # fmt: skip
             return sum(self.integrate(g, b, "off") for g, b in zip(grids, beams, strict=True))
-        h, reach, ends = self._parts(b0, grids[0].resolution)
-        if len(ends) > 1:
+        h, reach, csum = self._bound(b0, res)
+        if csum[-1] > self.max_samples_per_call:  # integrate would apply it in parts
             return sum(self.integrate(g, b, "off") for g, b in zip(grids, beams, strict=True))
-        use = reach > 0  # as _cone_updates keeps them
-        lat = lattice(reach[use], h[use], grids[0].resolution) if use.any() else None
-        return sum(grid.add(*self._cone_updates(grid, b, h, reach, "off", lat))
-                   for grid, b in zip(grids, beams, strict=True))  # fmt: skip
+        # As many grids at once as keep a computation within max_samples_per_call points.
+        at_once = max(1, int(self.max_samples_per_call // max(csum[-1], 1.0)))
+        for g, b in zip(grids, beams, strict=True):
+            grow_for_cones(g, b.x, b.y, h, reach)
+        keep = (reach > 0).nonzero()[0]  # a cone of no length has no lattice point
+        if len(keep) == 0:
+            return 0
+        h, reach = h[keep], reach[keep]
+        hit = b0.kind[keep] == KIND_HIT
+        z = np.where(hit, b0.range_m[keep], np.nan)
+        groups: dict[tuple, list[int]] = {}
+        for i, g in enumerate(grids):
+            groups.setdefault((g.origin, g.shape), []).append(i)
+        batches = [
+            ids[k : k + at_once] for ids in groups.values() for k in range(0, len(ids), at_once)
+        ]
+        total = 0
+        for idx in batches:
+            m, grid = len(idx), grids[idx[0]]
+            x, y, angle = (np.concatenate([getattr(beams[i], n)[keep] for i in idx]).astype(
+                float, copy=False) for n in ("x", "y", "angle"))  # fmt: skip
+            hm, rm = np.tile(h, m), np.tile(reach, m)
+            cells = cone_cells(grid, x, y, angle, hm, rm, lattice(rm, hm, res))
+            per, flat, dl = cell_updates(grid, self.config, (x, y), angle, np.tile(hit, m),
+                                         np.tile(z, m), hm, cells)  # fmt: skip
+            cut = np.concatenate([[0], per.cumsum()[len(keep) - 1 :: len(keep)]])
+            for j, i in enumerate(idx):
+                total += grids[i].add(flat[cut[j] : cut[j + 1]], dl[cut[j] : cut[j + 1]])
+        return total
