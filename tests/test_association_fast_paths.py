@@ -274,3 +274,29 @@ def test_the_association_equals_its_former_computation(monkeypatch):
     assert _bits(fast.grid) == _bits(former.grid)
     assert _bits(fast._ref) == _bits(former._ref)
     assert fast.cell_updates == former.cell_updates
+
+
+def test_grid_add_on_a_wide_map_sums_in_the_cells_box_like_np_unique():
+    """A scan's cells span many rows of a wide map: summed in the box of their rows and
+    columns, bit for bit as np.unique's path sums them (in their given order)."""
+    rng = np.random.default_rng(13)
+    for trial in range(30):
+        g = OccupancyGrid(GridConfig(size_m=(80.0, 60.0), resolution_m=0.05))
+        rows, cols = g.shape
+        n = int(rng.integers(1, 3000))
+        r = rng.integers(0, 60, n) + rng.integers(0, rows - 60)
+        c = rng.integers(0, 50 if trial % 3 else cols, n) + (
+            rng.integers(0, cols - 50) if trial % 3 else 0
+        )
+        idx = r * cols + c
+        assert idx.max() - idx.min() > 4 * n + 65536 or trial % 3 == 0
+        for _ in range(3):
+            dl = rng.normal(0.0, 2.0, n)
+            want = g.logodds.reshape(-1).copy()
+            t, inv = np.unique(idx, return_inverse=True)
+            tot = np.bincount(inv, weights=dl) + want[t]
+            want[t] = np.clip(tot, g.config.l_min, g.config.l_max)
+            assert g.add(idx, dl) == n
+            np.testing.assert_array_equal(
+                g.logodds.reshape(-1).view(np.uint32), want.view(np.uint32)
+            )
