@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
-from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones, lattice
+from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones, lattice, tiled
 from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
 
@@ -310,6 +310,7 @@ class IrInverseModel:
         h, reach = h[keep], reach[keep]
         hit = b0.kind[keep] == KIND_HIT
         z = np.where(hit, b0.range_m[keep], np.nan)
+        lat = lattice(reach, h, res)
         groups: dict[tuple, list[int]] = {}
         for i, g in enumerate(grids):
             groups.setdefault((g.origin, g.shape), []).append(i)
@@ -322,7 +323,7 @@ class IrInverseModel:
             x, y, angle = (np.concatenate([getattr(beams[i], n)[keep] for i in idx]).astype(
                 float, copy=False) for n in ("x", "y", "angle"))  # fmt: skip
             hm, rm = np.tile(h, m), np.tile(reach, m)
-            cells = cone_cells(grid, x, y, angle, hm, rm, lattice(rm, hm, res))
+            cells = cone_cells(grid, x, y, angle, hm, rm, tiled(lat, m) if m > 1 else lat)
             per, flat, dl = cell_updates(grid, self.config, (x, y), angle, np.tile(hit, m),
                                          np.tile(z, m), hm, cells)  # fmt: skip
             cut = np.concatenate([[0], per.cumsum()[len(keep) - 1 :: len(keep)]])

@@ -92,6 +92,16 @@ def test_integrate_each_equals_one_integrate_per_grid():
         model.max_samples_per_call = 400_000
         for g, p in zip(grids, plain, strict=True):
             assert _bits(g) == _bits(p)
+    # The lattice of copies of the same cones is the copied lattice.
+    for _ in range(20):
+        n = int(rng.integers(1, 13))
+        reach, h = rng.uniform(0.05, 5.6, n), rng.uniform(0.017, 0.35, n)
+        one = ir_cone.lattice(reach, h, 0.05)
+        for m in (2, 4):
+            want = ir_cone.lattice(np.tile(reach, m), np.tile(h, m), 0.05)
+            got = ir_cone.tiled(one, m)
+            for f in ("kb", "t", "big", "first", "cnt", "lat"):
+                np.testing.assert_array_equal(getattr(got, f), getattr(want, f))
     # Beams that do not share their readings: one integrate each.
     other = Beams(*(np.copy(a) for a in (beams[0].x, beams[0].y, beams[0].angle, ranges,
                                          kind, sigma)))  # fmt: skip
