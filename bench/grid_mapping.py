@@ -22,7 +22,8 @@ match_ratio_with_da (paper: 0.44 and 0.83), seconds, cell_updates_per_s and more
                                  [--baseline OLD_CHECKOUT [--repeat N]]
 
 The speed figures are wall time (``cell_updates_per_s``) and, because a shared machine's
-load moves wall time, CPU time of this process (``cell_updates_per_cpu_s``).
+load moves wall time, CPU time of this process (``cell_updates_per_cpu_s``). The process
+runs with the daemon's heap setting (``hilnav.heap``), and so does a baseline's.
 ``--baseline OLD_CHECKOUT`` runs this script on that checkout's packages in a subprocess
 (bench/baseline.py) alternating with our own runs, and prints both side by side: the
 maps must agree and the ratios are the speed-up.
@@ -426,7 +427,19 @@ RATES = ["cell_updates_per_s", "cell_updates_per_s_with_da", "cell_updates_per_c
          "cell_updates_per_cpu_s_with_da"]  # fmt: skip
 
 
+def _heap_slack() -> None:
+    """The daemon's heap setting (hilnav.heap: numpy's per-scan arrays without page
+    faults), in this process and, by glibc's environment variable, in a baseline's."""
+    try:
+        from hilnav.heap import TOP_PAD_BYTES, keep_heap_slack
+    except ImportError:  # an older checkout's packages (--baseline): our parent set it
+        return
+    keep_heap_slack()
+    os.environ.setdefault("MALLOC_TOP_PAD_", str(TOP_PAD_BYTES))
+
+
 def main(argv: list[str] | None = None) -> int:
+    _heap_slack()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--distance", type=float, default=70.0, help="metres of driving")

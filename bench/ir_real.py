@@ -46,6 +46,7 @@ if __package__ in (None, ""):
 
 from fusion.heading import HeadingFilter, HeadingParams
 from hilnav.config import load_config
+from hilnav.heap import keep_heap_slack
 from hilnav.importers.carmen import EmulatedRun, emulate, reference_map, stream
 from hilnav.services import association_config, heading_params
 from mapping.association import AssociationConfig, SampleAssociation
@@ -182,6 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-encoders-only", action="store_true", help="skip the encoder runs")
     ap.add_argument("--out", type=Path, help="write the maps as PNGs here")
     args = ap.parse_args(argv)
+    keep_heap_slack()  # the daemon's heap setting (numpy's per-scan arrays, no page faults)
     t_all = time.perf_counter()
     cfg = load_config(None)
     from hilnav.commands.importer import parse_mounts  # the CLI's --ir-mounts syntax

@@ -99,6 +99,9 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from hilnav.heap import keep_heap_slack
+
+    keep_heap_slack()  # numpy's per-scan arrays without page faults (hilnav.heap)
     try:
         return int(args.func(args) or 0)
     except CliError as exc:

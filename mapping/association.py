@@ -31,11 +31,11 @@ module that holds it):
   beyond Wilks' threshold, and then a sequential likelihood-ratio test against the
   uncorrected branch on the scans that come after it (held out from the fit). Every
   check is reported as a :class:`msgs.AssociationReport` with its reason.
-- Bounded memory and time: a snapshot of the map is kept every ``snapshot_every_m`` of
-  travel over the last ``reinsert_m``; an accepted correction is ramped in over the
-  scans since the oldest of them, which are re-inserted into it (exact: no
-  "un-inserting" of clamped log-odds), ``reinsert_per_step`` scans per step (the old
-  map is used until the rebuilt one has caught up), so no step stalls.
+- Bounded memory and time (:mod:`mapping.reinsertion`): a snapshot of the map is kept
+  every ``snapshot_every_m`` of travel over the last ``reinsert_m``; an accepted
+  correction is ramped in over the scans since the oldest of them, which are re-inserted
+  into it (exact: no "un-inserting" of clamped log-odds), ``reinsert_per_step`` scans
+  per step (the old map is used until the rebuilt one has caught up), so no step stalls.
 - The heading sigma the scans are inserted with (eq. 6) is the filter's, but after a
   correction only its growth since then is added to the posterior's. The samples spread
   with their own noise plus the growth of the filter's variance
@@ -49,15 +49,19 @@ Modules: :mod:`mapping.association_config` (the parameters), :mod:`mapping.scan_
 (the scans, the nodes and the window), :mod:`mapping.pose_samples` (the sample cloud:
 spread, weights, resampling, tempering), :mod:`mapping.beam_model` (eq. 7-8 against the
 map), :mod:`mapping.loop_correction` (the acceptance tests and the re-alignment),
-:mod:`mapping.heading_drift` (the drift hypotheses), :mod:`mapping.se2` (pose algebra).
+:mod:`mapping.heading_drift` (the drift hypotheses), :mod:`mapping.reinsertion` (the
+snapshots and the rebuild after a correction), :mod:`mapping.se2` (pose algebra).
 This module keeps the state (estimate, cloud, maps, snapshots, records, the drift test)
-and runs them scan by scan.
+and runs them scan by scan. Every scan goes into the map, ``ref_lag_m`` later into the
+reference map (its cells then taken from the first insertion: :mod:`mapping.ir_memo`)
+and into each drift hypothesis' map (the four in one computation:
+``IrInverseModel.integrate_each``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -66,8 +70,9 @@ from mapping.beam_model import BeamModel, FieldBeamModel, pair_ratio
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.heading_drift import Adoption, DriftBank, drifted_step
 from mapping.ir_inverse import KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
-from mapping.loop_correction import HeldOut, check_loop, realigned_poses
+from mapping.loop_correction import HeldOut, check_loop
 from mapping.pose_samples import spread
+from mapping.reinsertion import Rebuild, Snapshot, keep_snapshot, realign
 from mapping.scan_records import ScanRecords
 from mapping.se2 import compose, relative, wrap
 from msgs import AssociationReport, HeadingEstimate, IrScan, Pose2D
@@ -94,13 +99,14 @@ class SampleAssociation:
             raise ValueError("IR mounts must be (K, 3): x, y, yaw of each sensor on the robot")
         self.config = config or AssociationConfig()
         # Each scan goes into the map, then into the reference map: the second time its
-        # cell updates are taken from the first (mapping.ir_memo; at most 1 M, 12 MB).
-        self.model = IrInverseModel(inverse or InverseModelConfig(), reuse_cells=1_000_000)
+        # cell updates are taken from the first (mapping.ir_memo; at most 2 M, 24 MB: the
+        # scans of ref_lag_m at 10-20 Hz; the drift branches, at other poses, do not use it).
+        self.model = IrInverseModel(inverse or InverseModelConfig(), reuse_cells=2_000_000)
         self.grid = OccupancyGrid(grid_config)
         self._ref = self.grid.copy()
         self._ref_upto = 0
         # (first scan not in it, travel then, the map then): the re-insertion window.
-        self._snaps: list[tuple[int, float, OccupancyGrid]] = [(0, 0.0, self.grid.copy())]
+        self._snaps: list[Snapshot] = [(0, 0.0, self.grid.copy())]
         self._rec = ScanRecords(self.mounts)
         self._rng = np.random.default_rng(seed)
         self._particles = np.zeros((self.config.samples, 3))
@@ -113,7 +119,7 @@ class SampleAssociation:
         self._last_check = 0.0
         self._pending: HeldOut | None = None
         self._sigma = 0.0
-        self._rebuild: _Rebuild | None = None
+        self._rebuild: Rebuild | None = None
         # The input heading's drift per radian turned (learnt), and its test.
         self._drift = 0.0
         self._drift_spacing = self.config.drift_sigma_per_rad
@@ -236,23 +242,20 @@ class SampleAssociation:
         r = self._rec
         cfg = self.config
         n = len(r)
-        rebuilding = self._rebuild is not None
-        if not rebuilding and self._travel - self._snaps[-1][1] >= cfg.snapshot_every_m:
-            self._snaps.append((n, self._travel, self.grid.copy()))
-            # Only the snapshots within the re-insertion window are kept.
-            while len(self._snaps) > 1 and self._snaps[0][1] < self._travel - cfg.reinsert_m:
-                self._snaps.pop(0)
+        if self._rebuild is None:
+            keep_snapshot(self._snaps, n, self._travel, self.grid, cfg)
         r.append(self._estimate.copy(), sigma, ranges, kinds, self._travel, stamp_ns)
         if self._bank is not None:
             self._bank.record()
-        self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1))
+        self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1), "keep")
         upto = r.older_than(self._ref_upto, self._travel - cfg.ref_lag_m)
         # At most reinsert_per_step scans a step (after turning on the spot many scans
         # come of age at once; the reference map may lag a few steps more).
         upto = min(upto, self._ref_upto + cfg.reinsert_per_step)
         aged = upto - self._ref_upto
         if upto > self._ref_upto:
-            self.cell_updates += self.model.integrate(self._ref, r.beams(self._ref_upto, upto))
+            self.cell_updates += self.model.integrate(self._ref, r.beams(self._ref_upto, upto),
+                                                      "take")  # fmt: skip
             self._ref_upto = upto
         if self._bank is not None:
             # The branches take what is left of the step's budget (at least one scan each).
@@ -336,25 +339,14 @@ class SampleAssociation:
     def _realign(self, corrected: np.ndarray) -> int:
         """Re-align the scans since the oldest snapshot kept (about ``reinsert_m`` back)
         so the last pose is ``corrected``, and start rebuilding the reference map and the
-        map from that snapshot (exact; :meth:`_advance_rebuild` does it a bounded number
-        of scans per step). Returns the number of scans moved."""
-        r = self._rec
-        inside = [sn for sn in self._snaps if sn[1] >= self._travel - self.config.reinsert_m]
-        a, _, snap = inside[0] if inside else self._snaps[-1]
-        n = len(r)
-        if n - a >= 2:
-            new = realigned_poses(np.array(r.poses[a:n]), np.array(r.travel[a:n]), corrected)
-            for i in range(a, n):
-                r.poses[i] = new[i - a]
-        else:
-            r.poses[n - 1] = np.array(corrected, dtype=float)
-        self._snaps = [sn for sn in self._snaps if sn[0] <= a]  # the later ones hold old poses
+        map from that snapshot (:mod:`mapping.reinsertion`). Returns the scans moved."""
+        self._rebuild, self._snaps, moved = realign(self._rec, self._snaps, self._travel,
+                                                    corrected, self.config)  # fmt: skip
         self._estimate = np.array(corrected, dtype=float)
         self._bank = None  # its null was the uncorrected branch: restarted after the rebuild
-        self._rebuild = _Rebuild(a, a, snap.copy())
-        self.reinserted_scans += n - a
+        self.reinserted_scans += moved
         self._advance_rebuild()
-        return n - a
+        return moved
 
     def _adopt(self, won: Adoption, stamp_ns: int) -> AssociationReport:
         """Take the drift branch that passed (:mod:`mapping.heading_drift`): its poses
@@ -367,7 +359,7 @@ class SampleAssociation:
         self._estimate, self._drift = b.pose.copy(), b.drift
         self._drift_spacing = won.next_spacing(self._drift_spacing, self.config.drift_steps)
         self._pending, self._bank = None, None
-        self._rebuild = _Rebuild(upto, upto, b.ref)
+        self._rebuild = Rebuild(upto, upto, b.ref)
         self.reinserted_scans += n - won.start
         self._advance_rebuild()
         report = won.report(stamp_ns, prev, old, self.config.samples, n)
@@ -379,32 +371,10 @@ class SampleAssociation:
         they have caught up, they replace the map and the reference map."""
         b = self._rebuild
         assert b is not None
-        r = self._rec
-        cut = r.older_than(b.cursor, self._travel - self.config.ref_lag_m)
-        stop = min(len(r), b.cursor + self.config.reinsert_per_step)
-        while b.cursor < stop:
-            if b.grid is None and b.cursor >= cut:
-                b.grid, b.ref_upto = b.ref.copy(), b.cursor
-            target = b.ref if b.grid is None else b.grid
-            end = stop if b.grid is not None else min(stop, cut)
-            self.cell_updates += self.model.integrate(target, r.beams(b.cursor, end))
-            b.cursor = end
-        if b.cursor < len(r):
-            return
-        if b.grid is None:
-            b.grid, b.ref_upto = b.ref.copy(), b.cursor
-        self._ref, self._ref_upto, self.grid = b.ref, b.ref_upto, b.grid
-        self._rebuild = None
-
-
-@dataclass
-class _Rebuild:
-    """A map being rebuilt from a snapshot after a correction: the scans from ``start``
-    are re-inserted, up to ``cursor`` so far, first into ``ref`` (those older than the
-    reference lag), then into ``grid`` (a copy of it, holding the rest)."""
-
-    start: int
-    cursor: int
-    ref: OccupancyGrid
-    grid: OccupancyGrid | None = None
-    ref_upto: int = 0
+        cfg = self.config
+        self.cell_updates += b.advance(self._rec, self.model, self._travel - cfg.ref_lag_m,
+                                       cfg.reinsert_per_step)  # fmt: skip
+        if b.done(self._rec):
+            assert b.grid is not None
+            self._ref, self._ref_upto, self.grid = b.ref, b.ref_upto, b.grid
+            self._rebuild = None

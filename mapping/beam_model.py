@@ -153,7 +153,7 @@ class FieldBeamModel:
         self.known: np.ndarray | None = None
         self.origin = (0.0, 0.0)
         self.res = 1.0
-        self._flat: tuple[np.ndarray, np.ndarray] | None = None
+        self._tables: tuple[np.ndarray, np.ndarray] | None = None
 
     def set_map(
         self, grid: OccupancyGrid, box: tuple[float, float, float, float] | None = None
@@ -174,7 +174,7 @@ class FieldBeamModel:
             c0, c1 = max(0, int(ca)), min(cols, int(cb) + 1)
             lo = lo[r0 : max(r1, r0 + 1), c0 : max(c1, c0 + 1)]
         occ = lo > self.l_occ
-        self._flat = None
+        self._tables = None
         self.known = lo != 0.0
         self.origin = (grid.origin[0] + c0 * self.res, grid.origin[1] + r0 * self.res)
         if not occ.any():
@@ -182,21 +182,39 @@ class FieldBeamModel:
             return
         self.dist = (distance_transform_edt(~occ) * self.res).astype(np.float32)
 
-    def _lookup(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distance to the nearest obstacle at world points (inf outside the map), and
-        whether the cell there was ever observed."""
+    def _index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Flat indices of world points into the field framed by one cell that stands
+        for everything outside it (a point outside lands on that frame: clipped)."""
         assert self.dist is not None and self.known is not None
         rows, cols = self.dist.shape
-        if self._flat is None:  # the field and the known cells, flat, and one cell past
-            self._flat = (np.append(self.dist.ravel(), np.float32(np.inf)),
-                          np.append(self.known.ravel(), False))  # fmt: skip
-        c = np.floor((x - self.origin[0]) / self.res)
-        r = np.floor((y - self.origin[1]) / self.res)
-        inside = (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
-        r *= cols
+        if self._tables is None:
+            # The field, and the cells' codes (1: an obstacle within 0.75 cell, i.e. an
+            # obstacle cell; 2: observed), framed: outside is infinitely far and unknown.
+            dist = np.full((rows + 2, cols + 2), np.inf, dtype=np.float32)
+            dist[1:-1, 1:-1] = self.dist
+            code = np.zeros((rows + 2, cols + 2), dtype=np.uint8)
+            code[1:-1, 1:-1] = (self.dist < 0.75 * self.res) | (self.known.astype(np.uint8) << 1)
+            self._tables = (dist.ravel(), code.ravel())
+        c = np.subtract(x, self.origin[0])
+        c /= self.res
+        np.floor(c, out=c)
+        r = np.subtract(y, self.origin[1], out=np.empty_like(c))
+        r /= self.res
+        np.floor(r, out=r)
+        # The frame's cell 0 is the field's -1: the same floors as the field's own cells.
+        c += 1.0
+        np.clip(c, 0.0, cols + 1.0, out=c)
+        r += 1.0
+        np.clip(r, 0.0, rows + 1.0, out=r)
+        r *= cols + 2
         r += c
-        idx = np.where(inside, r, rows * cols).astype(np.intp)  # outside: the cell past
-        return self._flat[0].take(idx), self._flat[1].take(idx)
+        return r.astype(np.intp)
+
+    def _lookup(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Distance to the nearest obstacle at world points (inf outside the map)."""
+        idx = self._index(x, y)
+        assert self._tables is not None
+        return self._tables[0].take(idx)
 
     def log_likelihood(
         self, poses: np.ndarray, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray
@@ -216,20 +234,25 @@ class FieldBeamModel:
         clear = kinds == KIND_CLEAR
         z = np.where(clear, z_max, np.nan_to_num(ranges, nan=z_max))
         sig = np.hypot(cfg.sigma_hit_m, cfg.sigma_hit_per_m2 * z**2)
-        d_end, _ = self._lookup(world[..., 0] + c * z, world[..., 1] + s * z)
+        d_end = self._lookup(world[..., 0] + c * z, world[..., 1] + s * z)
         # The ray up to its range less 1.5 sigma (or up to z_max for a clear reading).
         t = np.arange(self.step_m, z_max + 1e-9, self.step_m)
         reach = np.where(clear, z_max, z - 1.5 * sig)
         px = world[..., 0][..., None] + c[..., None] * t
         py = world[..., 1][..., None] + s[..., None] * t
-        d_ray, known = self._lookup(px, py)
-        on_ray = t[None, None, :] <= reach[None, :, None]
-        wall = d_ray < 0.75 * self.res
-        blocked = np.any(on_ray & wall, axis=-1)  # (P, M)
-        # Blind: the ray meets never-observed space before its range or an obstacle.
-        first_wall = np.where(wall.any(-1), t[np.argmax(wall, axis=-1)], np.inf)
-        unk = on_ray & ~known
-        first_unk = np.where(unk.any(-1), t[np.argmax(unk, axis=-1)], np.inf)
+        idx = self._index(px, py)
+        assert self._tables is not None
+        code = self._tables[1].take(idx)
+        # The first obstacle and the first never-observed cell along each ray. The ray up
+        # to ``reach`` is a prefix of it: blocked when the first obstacle lies on it, blind
+        # when the first unknown cell lies on it before the first obstacle.
+        wall, unknown = code == 3, code == 0  # an obstacle cell is observed
+        iw = np.argmax(wall, axis=-1)[..., None]
+        iu = np.argmax(unknown, axis=-1)[..., None]
+        first_wall = np.where(np.take_along_axis(wall, iw, -1)[..., 0], t[iw[..., 0]], np.inf)
+        t_unk = np.where(np.take_along_axis(unknown, iu, -1)[..., 0], t[iu[..., 0]], np.inf)
+        blocked = first_wall <= reach[None, :]
+        first_unk = np.where(t_unk <= reach[None, :], t_unk, np.inf)
         blind = first_unk < first_wall
         with np.errstate(over="ignore"):
             p_hit = np.exp(-0.5 * (d_end / sig) ** 2) / (sig * math.sqrt(2 * math.pi))

@@ -138,8 +138,9 @@ class OccupancyGrid:
 
         Each touched cell's increments are summed in float64 in their given order, added
         to the cell and clamped once. Returns the number of (index, delta) updates
-        applied. O(k) in the k updates when their indices span at most a few times k
-        cells (a scan's cones), else O(k log k); never O(grid).
+        applied. O(k) in the k updates when their indices, or their box of rows and
+        columns, span at most a few times k cells (a scan's cones), else O(k log k);
+        never O(grid).
         """
         flat_index = np.asarray(flat_index, dtype=np.int64)
         n = int(flat_index.size)
@@ -148,20 +149,40 @@ class OccupancyGrid:
         delta = np.asarray(delta_logodds, dtype=np.float64)
         lo = int(flat_index.min())
         span = int(flat_index.max()) - lo + 1
-        if span <= 4 * n + 65536:
+        small = 4 * n + 65536
+        if span <= small:
             rel = flat_index - lo
             total = np.bincount(rel, weights=delta, minlength=span)
             mark = np.zeros(span, dtype=bool)
             mark[rel] = True
-            touched = np.flatnonzero(mark)
+            touched = mark.nonzero()[0]
             total = total[touched]
             touched += lo
         else:
-            touched, inv = np.unique(flat_index, return_inverse=True)
-            total = np.bincount(inv, weights=delta)
+            # The rows between span a wide map: index the cells' own box of columns.
+            cols = self.logodds.shape[1]
+            row = flat_index // cols
+            col = flat_index - row * cols
+            c0, r0 = int(col.min()), int(row.min())
+            width = int(col.max()) - c0 + 1
+            box = (int(row.max()) - r0 + 1) * width
+            if box <= small:
+                rel = (row - r0) * width + (col - c0)
+                total = np.bincount(rel, weights=delta, minlength=box)
+                mark = np.zeros(box, dtype=bool)
+                mark[rel] = True
+                local = mark.nonzero()[0]
+                total = total[local]
+                r, c = np.divmod(local, width)
+                touched = (r + r0) * cols + (c + c0)
+            else:
+                touched, inv = np.unique(flat_index, return_inverse=True)
+                total = np.bincount(inv, weights=delta)
         flat = self.logodds.reshape(-1)
         total += flat[touched]
-        np.clip(total, self.config.l_min, self.config.l_max, out=total)
+        # np.clip, without its wrappers (the same values: lo < hi)
+        np.maximum(total, self.config.l_min, out=total)
+        np.minimum(total, self.config.l_max, out=total)
         flat[touched] = total
         self.updates += n
         return n

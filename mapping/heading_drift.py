@@ -42,7 +42,12 @@ bank, whose null must be the association's branch.
 
 Cost: K reference maps and K insertions of each scan as it ages (the same scans as the
 association's reference map, within what is left of the step's budget), and K + 1 ray
-casts of one scan per window spacing.
+casts of one scan per window spacing. The scans before the start go in at the same
+poses for every branch: until the first scan after it comes of age the branches share
+one map (copied when they part). The K insertions of a scan are one computation for the
+branches' maps of one origin (``IrInverseModel.integrate_each``), and none goes through
+the memo of the association's maps (other poses: never asked for again). Bit for bit
+what K maps of their own, each inserting alone, give.
 """
 
 from __future__ import annotations
@@ -167,8 +172,12 @@ class DriftBank:
     ) -> None:
         self.cfg = cfg
         self.drift, self.spacing, self.start = drift, spacing, start
-        self.branches = [Branch(drift + spacing * m, m, np.array(pose, dtype=float), ref.copy())
+        # Until the first scan after the start comes of age every branch's map takes the
+        # same scans at the same poses: one map, shared, copied when they part (exact).
+        shared = ref.copy()
+        self.branches = [Branch(drift + spacing * m, m, np.array(pose, dtype=float), shared)
                          for m in cfg.drift_steps]  # fmt: skip
+        self.shared = True
         self.ref_upto = ref_upto
         self.threshold = cfg.confirm_nats + math.log(max(len(self.branches), 1))
         self.next_travel = next_travel
@@ -195,12 +204,22 @@ class DriftBank:
         if upto <= a:
             return 0
         cut = min(max(self.start, a), upto)
-        for b in self.branches:
-            if cut > a:  # before the start: the association's poses
-                updates += model.integrate(b.ref, rec.beams(a, cut))
-            if upto > cut:
-                own = np.array(b.poses[cut - self.start : upto - self.start])
-                updates += model.integrate(b.ref, rec.beams(cut, upto, own))
+        if cut > a:  # before the start: the association's poses, the same for every branch
+            beams = rec.beams(a, cut)
+            if self.shared:  # counted as the separate maps were
+                updates += len(self.branches) * model.integrate(self.branches[0].ref, beams,
+                                                                memo="off")  # fmt: skip
+            else:
+                for b in self.branches:
+                    updates += model.integrate(b.ref, beams, memo="off")
+        if upto > cut:
+            if self.shared:  # the branches part: each its own copy from now on
+                for b in self.branches[1:]:
+                    b.ref = b.ref.copy()
+                self.shared = False
+            own = [np.array(b.poses[cut - self.start : upto - self.start]) for b in self.branches]
+            updates += model.integrate_each([b.ref for b in self.branches],
+                                            rec.beams_each(cut, upto, own))  # fmt: skip
         self.ref_upto = upto
         return updates
 

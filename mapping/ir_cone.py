@@ -16,7 +16,9 @@ at a fraction of its cost:
   (free before the hit, occupied at it, inside the eq. 6 cone) are picked in one pass,
   and eq. 6's power and the log-odds are computed for those only. The wrap of the angle
   is ``numerics.angles.wrap_angles``' ``np.mod`` done as the one add or subtract it
-  amounts to (exact: :func:`_wrap_abs`).
+  amounts to for beams whose angles lie in (-2 pi, 2 pi), and as fmod's exact remainder
+  from a split 2 pi for the others (the association's headings are not wrapped: after
+  loops they reach tens of radians), both exact (:func:`_wrap_abs`).
 
 Every step is a whole-array numpy operation over all beams of a call, so a scan of six
 beams costs a few dozen numpy calls.
@@ -25,6 +27,7 @@ beams costs a few dozen numpy calls.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -50,17 +53,17 @@ def grow_for_cones(
     """Grow the grid to hold every cone (its far corners lie reach / cos(h) away)."""
     ext = reach / np.cos(h) + 2 * grid.resolution
     grid.ensure(
-        float(np.min(x - ext)),
-        float(np.min(y - ext)),
-        float(np.max(x + ext)),
-        float(np.max(y + ext)),
+        float((x - ext).min()),
+        float((y - ext).min()),
+        float((x + ext).max()),
+        float((y + ext).max()),
     )
 
 
 def _runs(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(owner of each element, first element of each run) of runs of ``counts`` elements."""
-    starts = np.cumsum(counts) - counts
-    return np.repeat(np.arange(len(counts)), counts), starts
+    starts = counts.cumsum() - counts
+    return np.arange(len(counts)).repeat(counts), starts
 
 
 def _lattice_rows(
@@ -81,6 +84,48 @@ def _lattice_rows(
     return kb, t, np.minimum(big, j_n[kb]), k_n
 
 
+@dataclass(frozen=True)
+class Lattice:
+    """The lattice points of a batch of cones as far as they depend on the cones' lengths
+    and half-angles alone, not on where the cones lie: the rows (beam, t, highest |j|,
+    each beam's first row), the points per row and each point's offset
+    j s along its row. The same scans at other poses (the drift hypotheses' maps) share
+    it."""
+
+    kb: np.ndarray
+    t: np.ndarray
+    big: np.ndarray
+    first: np.ndarray
+    cnt: np.ndarray
+    lat: np.ndarray
+
+
+def lattice(reach: np.ndarray, h: np.ndarray, res: float) -> Lattice:
+    """The :class:`Lattice` of cones of lengths ``reach`` and half-angles ``h``."""
+    spacing = 0.7 * res
+    kb, t, big, k_n = _lattice_rows(reach, np.tan(h), res, spacing)
+    first = k_n.cumsum() - k_n
+    cnt = 2 * big + 1
+    lat = np.arange(int(cnt.sum()), dtype=np.int64)
+    lat -= (cnt.cumsum() - cnt + big).repeat(cnt)
+    return Lattice(kb, t, big, first, cnt, lat * spacing)
+
+
+def tiled(lat: Lattice, copies: int) -> Lattice:
+    """The :class:`Lattice` of ``copies`` copies of the same cones one after the other
+    (what :func:`lattice` of the repeated lengths and half-angles gives, copied)."""
+    beams, rows = len(lat.first), len(lat.kb)
+    step = np.arange(copies)
+    return Lattice(
+        np.tile(lat.kb, copies) + (step * beams).repeat(rows),
+        np.tile(lat.t, copies),
+        np.tile(lat.big, copies),
+        np.tile(lat.first, copies) + (step * rows).repeat(beams),
+        np.tile(lat.cnt, copies),
+        np.tile(lat.lat, copies),
+    )
+
+
 def cone_cells(
     grid: OccupancyGrid,
     x: np.ndarray,
@@ -88,15 +133,19 @@ def cone_cells(
     angle: np.ndarray,
     h: np.ndarray,
     reach: np.ndarray,
+    lat: Lattice | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The cells a lattice point of a beam's cone falls in, each (beam, cell) once,
-    ordered by beam then row then column. The grid must hold them. Returns the cells
-    per beam, and the cells' row and column (as floats) and flat index."""
+    ordered by beam then row then column. The grid must hold them. ``lat``: the cones'
+    :func:`lattice` if it is known. Returns the cells per beam, and the cells' row and
+    column (as floats) and flat index."""
     res = grid.resolution
     ox, oy = grid.origin
     spacing = 0.7 * res
     ca, sa = np.cos(angle), np.sin(angle)
-    kb, t, big, k_n = _lattice_rows(reach, np.tan(h), res, spacing)
+    if lat is None:
+        lat = lattice(reach, h, res)
+    kb, t, big, first, cnt = lat.kb, lat.t, lat.big, lat.first, lat.cnt
     # The start of each row (world), and its two end points' cells: the beam's box.
     sa_k, ca_k = sa[kb], ca[kb]
     ax = x[kb] + t * ca_k
@@ -104,7 +153,6 @@ def cone_cells(
     half = big * spacing
     ends_c = [np.floor((ax + s * half * sa_k - ox) / res) for s in (-1.0, 1.0)]
     ends_r = [np.floor((ay + s * half * ca_k - oy) / res) for s in (-1.0, 1.0)]
-    first = np.cumsum(k_n) - k_n
     c0 = np.minimum.reduceat(np.minimum(*ends_c), first) - 1.0
     c1 = np.maximum.reduceat(np.maximum(*ends_c), first) + 1.0
     r0 = np.minimum.reduceat(np.minimum(*ends_r), first) - 1.0
@@ -114,48 +162,73 @@ def cone_cells(
     off = np.cumsum(area) - area
     # Every lattice point (row k of a beam, column j), with the reference's arithmetic,
     # as the index row * width + col + base into the beams' bitmaps (exact in float64).
-    cnt = 2 * big + 1
-    lat = np.arange(int(cnt.sum()), dtype=np.int64)
-    lat -= np.repeat(np.cumsum(cnt) - cnt + big, cnt)
-    lat = lat * spacing
-    tmp = np.repeat(sa_k, cnt)
-    tmp *= lat
-    px = np.repeat(ax, cnt)
+    tmp = sa_k.repeat(cnt)
+    tmp *= lat.lat
+    px = ax.repeat(cnt)
     px -= tmp
     px -= ox
     px /= res
     np.floor(px, out=px)
-    np.multiply(np.repeat(ca_k, cnt), lat, out=tmp)
-    py = np.repeat(ay, cnt)
+    np.multiply(ca_k.repeat(cnt), lat.lat, out=tmp)
+    py = ay.repeat(cnt)
     py += tmp
     py -= oy
     py /= res
     np.floor(py, out=py)
     py *= width
     py += px
-    py += np.repeat((off - r0 * width - c0)[kb], cnt)
+    py += (off - r0 * width - c0)[kb].repeat(cnt)
     mark = np.zeros(int(off[-1] + area[-1]), dtype=bool)
     mark[py.astype(np.intp)] = True
-    idx = np.flatnonzero(mark)
-    per = np.diff(np.searchsorted(idx, np.append(off, mark.size)))
-    local = idx - np.repeat(off, per)
+    idx = mark.nonzero()[0]
+    ends = idx.searchsorted(np.append(off, mark.size))
+    per = ends[1:] - ends[:-1]
+    local = idx - off.repeat(per)
     lr = np.floor(local / width)  # exact: integers far below 2**52
-    row = lr + np.repeat(r0, per)
-    col = local - lr * width + np.repeat(c0, per)
+    row = lr + r0.repeat(per)
+    col = local - lr * width + c0.repeat(per)
     return per, row, col, (row * grid.shape[1] + col).astype(np.int64)
 
 
-def _wrap_abs(a: np.ndarray) -> np.ndarray:
+# 2 pi in two parts, the first of 24 bits: q * _TWO_PI_HI and q * _TWO_PI_LO are exact
+# for integers |q| <= 2**20 (24 + 20 and 29 + 20 bits).
+_TWO_PI_HI = math.ldexp(math.floor(math.ldexp(TWO_PI, 21)), -21)
+_TWO_PI_LO = TWO_PI - _TWO_PI_HI  # exact (Sterbenz)
+_Q_MAX = 2.0**20
+
+
+def _mod_two_pi(a: np.ndarray) -> np.ndarray:
+    """np.mod(a, 2 pi), exactly, at a fraction of fmod's cost: fmod(a, m) is a - q m with
+    q = trunc(a / m), always representable; a - q m_hi is exact (both multiples of the
+    ulp of m's last bit, the difference below 8) and so is the one rounding of (a - q
+    m_hi) - q m_lo; the quotient can only be one too far from 0 (the division rounded up
+    to an integer), which leaves the remainder of the wrong sign, and one exact step
+    corrects it. Then numpy's rule: a negative remainder gets m added."""
+    q = np.trunc(a / TWO_PI)
+    r = a - q * _TWO_PI_HI
+    r -= q * _TWO_PI_LO
+    off = (((r < 0.0) & (a > 0.0)) | ((r > 0.0) & (a < 0.0))).nonzero()[0]
+    if len(off):
+        r[off] -= np.copysign(TWO_PI, r[off])
+    np.add(r, TWO_PI, out=r, where=r < 0.0)
+    huge = (~(np.abs(q) <= _Q_MAX)).nonzero()[0]  # and NaN: numpy's own
+    if len(huge):
+        r[huge] = np.mod(a[huge], TWO_PI)
+    return r
+
+
+def _wrap_abs(a: np.ndarray, near: bool = False) -> np.ndarray:
     """|wrap_angles(a)|, exactly: np.mod(a + pi, 2 pi) (numpy's fmod-based remainder)
-    done as one add or subtract where a + pi lies in [-2 pi, 4 pi), np.mod elsewhere."""
+    minus pi. ``near``: every a + pi lies in [-2 pi, 4 pi) (the beams' angles lie in
+    (-2 pi, 2 pi)), where the remainder is one add or subtract; else
+    :func:`_mod_two_pi`. (Its -pi is pi's wrap; the absolute value makes them one.)"""
     a = a + math.pi
-    m = np.where(a < 0.0, a + TWO_PI, a)
-    np.subtract(m, TWO_PI, out=m, where=a >= TWO_PI)
-    far = np.flatnonzero((a < -TWO_PI) | (a >= 2.0 * TWO_PI))
-    if len(far):
-        m[far] = np.mod(a[far], TWO_PI)
+    if near:
+        m = np.where(a < 0.0, a + TWO_PI, a)
+        np.subtract(m, TWO_PI, out=m, where=a >= TWO_PI)
+    else:
+        m = _mod_two_pi(a)
     m -= math.pi
-    m[m == -math.pi] = math.pi
     return np.abs(m, out=m)
 
 
@@ -180,24 +253,25 @@ def cell_updates(
     col += 0.5
     col *= res
     vx = np.add(ox, col, out=col)
-    vx -= np.repeat(x, per)
+    vx -= x.repeat(per)
     row += 0.5
     row *= res
     vy = np.add(oy, row, out=row)
-    vy -= np.repeat(y, per)
+    vy -= y.repeat(per)
     r = np.hypot(vx, vy)
     w = max(config.hit_halfwidth_m, 0.75 * res)
     # free: r < z - w before a hit, r <= max range for a beam that saw nothing.
     lim = np.where(hit, z - w, math.nextafter(config.max_range_m, math.inf))
-    free = r < np.repeat(lim, per)
+    free = r < lim.repeat(per)
     with np.errstate(invalid="ignore"):
-        tmp = r - np.repeat(z, per)
+        tmp = r - z.repeat(per)
         occ = np.abs(tmp, out=tmp) <= w
     free |= occ
     # Eq. 6's angle: from the axis to the nearest point of the cell.
     alpha = np.arctan2(vy, vx, out=vy)
-    alpha -= np.repeat(angle, per)
-    alpha = _wrap_abs(alpha)
+    alpha -= angle.repeat(per)
+    # The beams' angles within (-2 pi, 2 pi) put alpha + pi within [-2 pi, 4 pi).
+    alpha = _wrap_abs(alpha, bool(np.abs(angle).max() < TWO_PI - 1e-6))
     cell_radius = 0.7072 * res
     tmp = np.maximum(r, 1e-9, out=vx)
     np.divide(cell_radius, tmp, out=tmp)
@@ -205,9 +279,9 @@ def cell_updates(
     alpha -= np.arcsin(tmp, out=tmp)
     np.maximum(alpha, 0.0, out=alpha)
     alpha[r <= cell_radius] = 0.0
-    hb = np.repeat(h, per)
+    hb = h.repeat(per)
     free &= alpha <= hb
-    sel = np.flatnonzero(free)
+    sel = free.nonzero()[0]
     # Eq. 6 as attenuate() computes it: |p - 0.5| ** (1 + |alpha / 3 sigma|) (alpha >= 0).
     occ = occ[sel]
     e = alpha[sel]
@@ -219,5 +293,6 @@ def cell_updates(
     np.add(0.5, d, out=p, where=occ)
     dl = np.log(p)
     dl -= np.log1p(np.negative(p, out=p), out=p)
-    ends = np.searchsorted(sel, np.cumsum(per))
-    return np.diff(ends, prepend=0), flat[sel], dl
+    ends = sel.searchsorted(per.cumsum())
+    ends[1:] -= ends[:-1].copy()
+    return ends, flat[sel], dl

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
-from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones
+from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones, lattice, tiled
 from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
 
@@ -47,6 +47,7 @@ KIND_HIT = 0
 KIND_CLEAR = 1
 _STATUS_KIND = {"ok": KIND_HIT, "too_far": KIND_CLEAR, "no_return": KIND_CLEAR}
 _FIELDS = ("x", "y", "angle", "range_m", "kind", "sigma_rad")
+_MEMO_MODES = ("use", "keep", "take", "off")
 
 
 @dataclass(frozen=True)
@@ -171,8 +172,8 @@ class IrInverseModel:
         c = self.config
         if not c.use_heading_uncertainty:
             return np.full(np.shape(sigma_rad), c.min_half_angle_rad)
-        return np.clip(c.sigma_multiple * np.asarray(sigma_rad, dtype=float),
-                       c.min_half_angle_rad, c.max_half_angle_rad)  # fmt: skip
+        h = np.maximum(c.sigma_multiple * np.asarray(sigma_rad, dtype=float), c.min_half_angle_rad)
+        return np.minimum(h, c.max_half_angle_rad, out=h)  # np.clip, without its wrappers
 
     def reach(self, beams: Beams, res: float) -> np.ndarray:
         """Length of each beam's cone: past the hit by the occupied band's half width,
@@ -188,11 +189,7 @@ class IrInverseModel:
     def _parts(self, beams: Beams, res: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """(half-angles, reaches, the ends of the parts of at most
         ``max_samples_per_call`` lattice points, bounded as the rectangle k_n (2 j_n + 1))."""
-        h = self.half_angles(beams.sigma_rad)
-        reach = self.reach(beams, res)
-        spacing = 0.7 * res
-        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
-        csum = np.cumsum(per)
+        h, reach, csum = self._bound(beams, res)
         if csum[-1] <= self.max_samples_per_call:
             return h, reach, [len(beams)]
         ends, start = [], 0
@@ -202,8 +199,21 @@ class IrInverseModel:
             ends.append(start)
         return h, reach, ends
 
+    def _bound(self, beams: Beams, res: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(half-angles, reaches, cumulative bound on the beams' lattice points)."""
+        h = self.half_angles(beams.sigma_rad)
+        reach = self.reach(beams, res)
+        spacing = 0.7 * res
+        per = np.ceil(reach / spacing) * (2 * (np.ceil(reach * np.tan(h) / spacing) + 1) + 1)
+        return h, reach, per.cumsum()
+
     def _cone_updates(
-        self, grid: OccupancyGrid, beams: Beams, h: np.ndarray, reach: np.ndarray
+        self,
+        grid: OccupancyGrid,
+        beams: Beams,
+        h: np.ndarray,
+        reach: np.ndarray,
+        memo: str = "use",
     ) -> tuple[np.ndarray, np.ndarray]:
         """Grow the grid to hold the beams' cones, then their cells and increments."""
         grow_for_cones(grid, beams.x, beams.y, h, reach)
@@ -226,10 +236,10 @@ class IrInverseModel:
                 grid, self.config, (x[i], y[i]), angle[i], hit[i], z[i], h[i], cells
             )
 
-        if self._memo is None:
+        if self._memo is None or memo == "off":
             return compute(slice(None))[1:]
         rows = np.column_stack([x, y, angle, beams.range_m, beams.kind, beams.sigma_rad])
-        return self._memo.updates(grid, rows, compute)
+        return self._memo.updates(grid, rows, compute, memo != "take", memo != "keep")
 
     def updates(self, grid: OccupancyGrid, beams: Beams) -> tuple[np.ndarray, np.ndarray]:
         """(flat cell indices, log-odds increments) of all beams; grows ``grid`` to fit.
@@ -251,18 +261,72 @@ class IrInverseModel:
             start = stop
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
-    def integrate(self, grid: OccupancyGrid, beams: Beams) -> int:
+    def integrate(self, grid: OccupancyGrid, beams: Beams, memo: str = "use") -> int:
         """Apply the beams to the grid, a bounded part at a time (each part's updates
         applied before the next is computed, so memory stays bounded); returns the number
-        of cell updates."""
+        of cell updates. ``memo`` (with ``reuse_cells``): "keep" for the grid that takes
+        the beams first (updates looked up and kept), "take" for the one that takes them
+        second, in order (looked up; a hit forgets its entry and the older ones), "use"
+        both, "off" for beams no other grid will take (:mod:`mapping.ir_memo`)."""
+        if memo not in _MEMO_MODES:
+            raise ValueError(f"memo must be one of {_MEMO_MODES}, got {memo!r}")
         if len(beams) == 0:
             return 0
         h, reach, ends = self._parts(beams, grid.resolution)
         if len(ends) == 1:
-            return grid.add(*self._cone_updates(grid, beams, h, reach))
+            return grid.add(*self._cone_updates(grid, beams, h, reach, memo))
         total, start = 0, 0
         for stop in ends:
             sub = Beams(*(getattr(beams, n)[start:stop] for n in _FIELDS))
-            total += grid.add(*self._cone_updates(grid, sub, h[start:stop], reach[start:stop]))
+            total += grid.add(*self._cone_updates(grid, sub, h[start:stop], reach[start:stop],
+                                                  memo))  # fmt: skip
             start = stop
+        return total
+
+    def integrate_each(self, grids: list[OccupancyGrid], beams: list[Beams]) -> int:
+        """``integrate(grids[i], beams[i], memo="off")`` for every i, bit for bit, for
+        beams that share their range, kind and sigma arrays (the same scans at other
+        poses: the drift hypotheses' maps): the grids of one origin and shape (after
+        growing) get their cells and increments from one computation (a beam's do not
+        depend on the other beams of a call). Returns the cell updates."""
+        b0 = beams[0] if beams else None
+        res = grids[0].resolution if grids else 0.0
+        if b0 is None or len(b0) == 0 or len({id(g) for g in grids}) != len(grids) or any(
+            b.range_m is not b0.range_m or b.kind is not b0.kind
+            or b.sigma_rad is not b0.sigma_rad or g.resolution != res
+            for g, b in zip(grids, beams, strict=True)
+        ):  # fmt: skip
+            return sum(self.integrate(g, b, "off") for g, b in zip(grids, beams, strict=True))
+        h, reach, csum = self._bound(b0, res)
+        if csum[-1] > self.max_samples_per_call:  # integrate would apply it in parts
+            return sum(self.integrate(g, b, "off") for g, b in zip(grids, beams, strict=True))
+        # As many grids at once as keep a computation within max_samples_per_call points.
+        at_once = max(1, int(self.max_samples_per_call // max(csum[-1], 1.0)))
+        for g, b in zip(grids, beams, strict=True):
+            grow_for_cones(g, b.x, b.y, h, reach)
+        keep = (reach > 0).nonzero()[0]  # a cone of no length has no lattice point
+        if len(keep) == 0:
+            return 0
+        h, reach = h[keep], reach[keep]
+        hit = b0.kind[keep] == KIND_HIT
+        z = np.where(hit, b0.range_m[keep], np.nan)
+        lat = lattice(reach, h, res)
+        groups: dict[tuple, list[int]] = {}
+        for i, g in enumerate(grids):
+            groups.setdefault((g.origin, g.shape), []).append(i)
+        batches = [
+            ids[k : k + at_once] for ids in groups.values() for k in range(0, len(ids), at_once)
+        ]
+        total = 0
+        for idx in batches:
+            m, grid = len(idx), grids[idx[0]]
+            x, y, angle = (np.concatenate([getattr(beams[i], n)[keep] for i in idx]).astype(
+                float, copy=False) for n in ("x", "y", "angle"))  # fmt: skip
+            hm, rm = np.tile(h, m), np.tile(reach, m)
+            cells = cone_cells(grid, x, y, angle, hm, rm, tiled(lat, m) if m > 1 else lat)
+            per, flat, dl = cell_updates(grid, self.config, (x, y), angle, np.tile(hit, m),
+                                         np.tile(z, m), hm, cells)  # fmt: skip
+            cut = np.concatenate([[0], per.cumsum()[len(keep) - 1 :: len(keep)]])
+            for j, i in enumerate(idx):
+                total += grids[i].add(flat[cut[j] : cut[j + 1]], dl[cut[j] : cut[j + 1]])
         return total

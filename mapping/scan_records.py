@@ -79,6 +79,25 @@ class ScanRecords:
             sig[keep],
         )
 
+    def beams_each(self, start: int, stop: int, poses: list[np.ndarray]) -> list[Beams]:
+        """:meth:`beams` of scans ``start:stop`` at each of several pose sets ((stop -
+        start, 3) each: the drift hypotheses'), sharing their range, kind and sigma arrays."""
+        if stop <= start:
+            return [Beams.concat([]) for _ in poses]
+        kinds = np.concatenate(self.kinds[start:stop])
+        ranges = np.concatenate(self.ranges[start:stop])
+        k = len(self.mounts)
+        mounts = np.tile(self.mounts, (stop - start, 1))
+        keep = kinds != KIND_SKIP
+        rng = np.where(kinds == KIND_HIT, ranges, np.nan)[keep]
+        kind = kinds[keep]
+        sig = np.repeat(np.array(self.sigma[start:stop]), k)[keep]
+        out = []
+        for p in poses:
+            sens = compose(np.repeat(np.asarray(p), k, axis=0), mounts)
+            out.append(Beams(sens[keep, 0], sens[keep, 1], sens[keep, 2], rng, kind, sig))
+        return out
+
     def older_than(self, start: int, travel: float) -> int:
         """The end of the run of scans from ``start`` taken before ``travel``."""
         upto = start
