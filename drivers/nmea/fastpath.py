@@ -31,12 +31,13 @@ from collections.abc import Callable
 from types import FunctionType
 from typing import TYPE_CHECKING
 
+from drivers.nmea.errmodel import error_model
 from drivers.nmea.fields import NUMBERS as nums
-from drivers.nmea.fields import _parse_hhmmss, ddmmyy, fnum, number
+from drivers.nmea.fields import clock, ddmmyy, number
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
 from drivers.nmea.handlers import KNOTS_TO_MPS
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, days_from_civil
-from drivers.nmea.sky import _gsa_fields
+from drivers.nmea.sky import _gsa_fields, _gsv_fields
 
 if TYPE_CHECKING:
     from drivers.nmea.epoch import EpochCombiner
@@ -51,6 +52,8 @@ _GST: dict[str, tuple] = {}
 _ZDA: dict[str, tuple] = {}
 # (talker, a GSA's fields text) -> what it says (sky._gsa_fields; () when too short)
 _GSA: dict[tuple[str, str], tuple] = {}
+# (talker, a GSV's fields text) -> what it says (sky._gsv_fields)
+_GSV: dict[tuple[str, str], tuple] = {}
 
 
 def _time(s: str) -> tuple[int | None, float | None]:
@@ -59,7 +62,7 @@ def _time(s: str) -> tuple[int | None, float | None]:
     if t is None:
         if len(_TIMES) >= _CACHE_MAX:
             _TIMES.clear()
-        t = _TIMES[s] = (_parse_hhmmss(s), fnum(s))  # (hhmmss_ns, without its own table)
+        t = _TIMES[s] = clock(s)
     return t
 
 
@@ -120,7 +123,32 @@ def gsa(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     elif comb._pending and comb._snap is None and new:
         comb._snap = fix.copy()
     if changed or sky.dop != st._dops or st._unnormed:
-        st.model(_NONE)
+        error_model(st, _NONE)
+    comb._stamp_ns = stamp
+
+
+def gsv(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
+    """Every GSV (Session.parse and apply, Sky.gsv, EpochCombiner.add_into): a GSV sets
+    no fix data; a complete set computes the DOPs the receiver did not give."""
+    key = (talker, rest)
+    read = _GSV.get(key)
+    if read is None:
+        read = _gsv_fields(talker, tuple(rest.split(",")))
+        if len(_GSV) >= _CACHE_MAX:
+            _GSV.clear()
+        _GSV[key] = read
+    st = comb.session
+    st.latch_frac = False
+    sky = st.sky
+    mask, st.gsx_more = sky.gsv_read(talker, read)
+    sky.last_gsa_talker = ""
+    if mask:  # (SATELLITE_SET: the fix as last reported is kept for the report)
+        if comb._pending and comb._snap is None:
+            comb._snap = st.fix.copy()
+        if sky.view:
+            sky.fill_dop()
+    if sky.dop != st._dops or st._unnormed:
+        error_model(st, _NONE)
     comb._stamp_ns = stamp
 
 
@@ -154,7 +182,7 @@ def vtg(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         fix.speed = speed
         changed = True
     if changed or st._unnormed:
-        st.model(_NONE)
+        error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
 
@@ -173,7 +201,7 @@ def gst(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     st.gst = stats
     st.gst_tod = _time(f0)[0]
     if st._unnormed:
-        st.model(_NONE)
+        error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
 
@@ -218,7 +246,7 @@ def zda(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         fix.time_ns = time_ns
         changed = True
     if changed or st._unnormed:
-        st.model(_NONE)
+        error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
     comb._last_timed = "ZDA"  # (EpochCombiner.timed)

@@ -78,10 +78,12 @@ def _prefix_xor(data: bytes) -> bytes:
 
 def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
     """Every line of a run of complete ASCII lines, checked at once with numpy: (starts,
-    ends without a CR, verdicts). A GOOD line is ``$...*HH`` of printable bytes, one
-    ``$``, no longer than ``max_line``, the XOR of the bytes between ``$`` and ``*`` equal
-    to HH; BAD_SUM fails only the XOR; OTHER is anything else (the per-line path). The
-    address (up to the first comma) is checked by the caller."""
+    ends without a CR, verdicts, commas, keys). A GOOD line is ``$...*HH`` of printable
+    bytes, one ``$``, no longer than ``max_line``, the XOR of the bytes between ``$`` and
+    ``*`` equal to HH; BAD_SUM fails only the XOR; OTHER is anything else (the per-line
+    path). The address (up to the first comma, or the ``*`` without one) is checked by
+    the caller; of a GOOD line, commas holds where it ends and keys its :func:`_key`
+    (-1 for an address of more than 7 characters)."""
     a = np.frombuffer(region, dtype=np.uint8)
     nl = np.flatnonzero(a == 10)
     starts = np.concatenate(([0], nl + 1))
@@ -92,11 +94,9 @@ def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
     ok = (n >= 5) & (n <= max_line)  # "$" + address + "*HH"
     s, e = starts[ok], ends[ok]
     ok[ok] = (a[s] == 36) & (a[e - 3] == 42)  # "$" ... "*"
-    # one "$" per line and no byte that is not printable: counted between their positions
-    dollars = np.flatnonzero(a == 36)
-    odd = np.flatnonzero(a - np.uint8(32) > 94)  # below 32 or above 126 (uint8 wraps)
-    ok &= dollars.searchsorted(ends) - dollars.searchsorted(starts) == 1
-    ok &= odd.searchsorted(ends) == odd.searchsorted(starts)
+    # no "$" but the first and no byte that is not printable: counted between positions
+    odd = np.flatnonzero((a - np.uint8(32) > 94) | (a == 36))  # (uint8 wraps below 32)
+    ok &= odd.searchsorted(ends) - odd.searchsorted(starts) == 1
     s, e = starts[ok], ends[ok]
     hi, lo = _HEXVAL[a[e - 2]], _HEXVAL[a[e - 1]]
     hexed = (hi >= 0) & (lo >= 0)
@@ -110,7 +110,26 @@ def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
         bounds[1::2] = e - 3
         xor = np.bitwise_xor.reduceat(a, bounds)[0::2]  # of the bytes between "$" and "*"
         verdict[good] = np.where(xor != hi * 16 + lo, BAD_SUM, GOOD)
-    return starts.tolist(), ends.tolist(), verdict.tolist()
+    # where each address ends (the first comma, else the "*"), and its key
+    commas = np.flatnonzero(a == 44)
+    comma = np.minimum(np.append(commas, len(a))[commas.searchsorted(starts)], ends - 3)
+    length = comma - starts - 1
+    words = np.ndarray(len(a), "<u8", np.append(a, _PAD8), 0, (1,))  # 8 bytes from each
+    keys = (words[np.minimum(starts + 1, len(a) - 1)] & _MASK[np.clip(length, 0, 7)]) | (
+        length.astype(np.uint64) << np.uint64(56)
+    )
+    keys = np.where((length >= 1) & (length <= 7), keys.astype(np.int64), -1)
+    return starts.tolist(), ends.tolist(), verdict.tolist(), comma.tolist(), keys.tolist()
+
+
+_PAD8 = np.zeros(8, dtype=np.uint8)
+_MASK = np.array([(1 << (8 * k)) - 1 for k in range(8)], dtype=np.uint64)
+
+
+def _key(address: str) -> int:
+    """An address of 1 to 7 characters as one integer (its bytes and its length), so that
+    a run's addresses are looked up without being cut out of the text first."""
+    return int.from_bytes(address.encode("ascii"), "little") | len(address) << 56
 
 
 # A route takes one sentence's fields text to what reads it: route(rest, stamp_ns, out).
@@ -174,10 +193,20 @@ class NmeaFramer:
             del buf[: end + 1]
             if region.isascii():
                 if len(region) >= _NUMPY_FROM:
-                    verdicts = _classify(region, self.max_line)
+                    starts, ends, verdicts, commas, keys = _classify(region, self.max_line)
+                    if verdicts.count(GOOD) == len(verdicts):  # (the usual run)
+                        self._route_keyed(
+                            region.decode("ascii"), starts, commas, ends, keys, routes,
+                            new_route, stamp_ns, out,
+                        )  # fmt: skip
+                    else:
+                        self._route(
+                            region, starts, ends, verdicts, routes, new_route, stamp_ns, out
+                        )
                 else:
-                    verdicts = self._classify_small(region)
-                self._route(region, *verdicts, routes, new_route, stamp_ns, out)
+                    self._route(
+                        region, *self._classify_small(region), routes, new_route, stamp_ns, out
+                    )
             else:
                 for line in region.split(b"\n"):
                     parts = self._line(line)
@@ -229,6 +258,38 @@ class NmeaFramer:
             else:
                 verdicts.append(GOOD)
         return starts, ends, verdicts
+
+    def _route_keyed(
+        self,
+        text: str,
+        starts: list,
+        commas: list,
+        ends: list,
+        keys: list,
+        routes: dict,
+        new_route: Callable,
+        stamp_ns: int,
+        out: list,
+    ) -> None:
+        """A run of good sentences (:func:`_classify`'s ``commas`` and ``keys``) to their
+        routes, looked up by key (an address's route is kept under its key too)."""
+        skipped = bad = 0
+        for s, c, e, key in zip(starts, commas, ends, keys, strict=True):
+            route = routes.get(key)
+            if route is None:
+                address = text[s + 1 : c]
+                route = routes.get(address)
+                if route is None:
+                    route = _routed(address, routes, new_route)
+                if key >= 0:
+                    routes[key] = route
+            if route:
+                route(text[c + 1 : e - 3], stamp_ns, out)
+            else:
+                skipped += e - s
+                bad += 1
+        self.stats.frames_ok += len(keys) - bad
+        self.stats.bytes_skipped += skipped
 
     def _route(
         self,

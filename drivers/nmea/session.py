@@ -240,15 +240,10 @@ class Session:
         return fix
 
     def model(self, new: dict) -> None:
-        """The error model on the merged fix (``new``: what the sentence gave)."""
-        self._dops = dict(self.sky.dop)
+        """The error model on the merged fix (``new``: what the sentence gave); it keeps
+        the DOPs it saw and whether a track is left outside 0-360 degrees (gpsd's error
+        model moves such a track by 360 each run, so it is not the same after another)."""
         error_model(self, new)
-        # a track outside 0-360 degrees: gpsd's error model moves it by 360 each run (so
-        # it is not the same after another run)
-        t, m = self.fix.track, self.fix.magtrack
-        self._unnormed = (t is not None and not 0.0 <= t < 360.0) or (
-            m is not None and not 0.0 <= m < 360.0
-        )
 
     def _had_altitude(self) -> bool:
         last, old = self.lastfix, self.oldfix

@@ -16,6 +16,8 @@ import math
 
 from drivers.nmea.fields import atoi, fnum
 from drivers.nmea.fixstate import DOP_SET, MODE_SET, SATELLITE_SET, USED_IS
+from msgs import GpsSatellite
+from msgs.construct import positional_constructor
 
 MAXCHANNELS = 130
 # talker letter -> NMEA 4.10 GNSS id (GSA/GSV of one constellation)
@@ -116,15 +118,61 @@ def _gsa_fields(talker: str, f: tuple[str, ...]) -> tuple[int, bool, dict, tuple
     return out
 
 
-class Satellite:
-    """One satellite of the skyview (gpsd's satellite_t)."""
+# A satellite in the view is the message itself (immutable, so one object serves every
+# epoch that repeats its fields): GpsSatellite(prn, gnss_id, sv_id, el, az, ss, used).
+_satellite = positional_constructor(GpsSatellite)
+_SATS: dict[tuple, tuple] = {}  # (talker, gnss, its four fields) -> _sat_entry(...)
+_GSV: dict[tuple[str, tuple[str, ...]], tuple] = {}  # (talker, fields) -> _gsv_fields(...)
 
-    __slots__ = ("prn", "gnss_id", "sv_id", "elevation", "azimuth", "ss", "used")
 
-    def __init__(self, prn: int, gnss_id: int, sv_id: int, el, az, ss) -> None:
-        self.prn, self.gnss_id, self.sv_id = prn, gnss_id, sv_id
-        self.elevation, self.azimuth, self.ss = el, az, ss
-        self.used = False
+def _sat_entry(talker: str, gnss: int, num: int, f: tuple[str, ...], k: int) -> tuple:
+    """One GSV satellite (``f[k:k+3]`` its elevation, azimuth and signal to noise):
+    (PRN, whether a GSA may mark it used, the satellite not used, the satellite used)."""
+    prn, ubx, sv = nmea_prn(talker, num, gnss)
+    el, az, ss = _whole(f, k), _whole(f, k + 1), _whole(f, k + 2)
+    usable = prn > 0 and ss is not None and ss > 0
+    return (prn, usable, _satellite(prn, ubx, sv, el, az, ss, False),
+            _satellite(prn, ubx, sv, el, az, ss, True))  # fmt: skip
+
+
+def _gsv_fields(talker: str, f: tuple[str, ...]) -> tuple:
+    """What a GSV says, without the session: () when it has a count of fields gpsd
+    refuses, else (signal id, parts, this part, satellites): one entry per satellite
+    field gpsd reads, None for a PRN of 0 (which skips one field only), else
+    :func:`_sat_entry`'s. The GNSS id of the talker applies to the first part only (as
+    in gpsd). A receiver repeats its GSV sentences and satellites: the last are kept."""
+    key = (talker, f)
+    hit = _GSV.get(key)
+    if hit is not None:
+        return hit
+    count = len(f) + 1
+    out: tuple = ()
+    if count > 3 and count % 4 in (0, 1):
+        sigid = atoi(f[-1]) if count % 4 == 1 else 0
+        part = atoi(f[1])
+        gnss = _TALKER_GNSS.get(talker[1:2], 0) if part == 1 else 0
+        sats: list = []
+        end = count // 4 * 4 - 1
+        k = 3
+        while k < end and part >= 1:
+            num = atoi(f[k])
+            k += 1
+            if num == 0:
+                sats.append(None)
+                continue
+            skey = (talker, gnss, num, f[k : k + 3])
+            sat = _SATS.get(skey)
+            if sat is None:
+                if len(_SATS) >= 512:
+                    _SATS.clear()
+                sat = _SATS[skey] = _sat_entry(talker, gnss, num, f, k)
+            sats.append(sat)
+            k += 3
+        out = (sigid, atoi(f[0]), part, tuple(sats))
+    if len(_GSV) >= 64:
+        _GSV.clear()
+    _GSV[key] = out
+    return out
 
 
 class Sky:
@@ -133,7 +181,7 @@ class Sky:
     def __init__(self) -> None:
         self.used_prns: tuple[int, ...] = ()
         self.used_count = 0  # satellites used: GSA's list, or GGA's count when it came later
-        self.view: list[Satellite] = []
+        self.view: list[GpsSatellite] = []
         self.dop: dict[str, float] = {}  # xdop ydop hdop vdop pdop tdop gdop
         self.last_gsa_talker = ""
         self.last_gsv_talker = ""
@@ -193,45 +241,34 @@ class Sky:
 
     def gsv(self, talker: str, f: tuple[str, ...]) -> tuple[int, bool]:
         """One GSV sentence -> (mask, more parts to come)."""
-        count = len(f) + 1
-        if count <= 3 or count % 4 not in (0, 1):
+        return self.gsv_read(talker, _gsv_fields(talker, f))
+
+    def gsv_read(self, talker: str, read: tuple) -> tuple[int, bool]:
+        """One GSV of what :func:`_gsv_fields` read -> (mask, more parts to come)."""
+        if not read:
             self.zero()
             return 0, False
-        sigid = atoi(f[-1]) if count % 4 == 1 else 0
-        self.awaited = atoi(f[0])
-        self.part = atoi(f[1])
+        sigid, self.awaited, self.part, sats = read
         if self.part < 1:
             self.zero()
             return 0, False
         t = talker[1:2]
-        gnss = 0
         if self.part == 1:
             if self.last_gsv_talker == "" or (t == "P" and sigid not in (2, 3, 5, 6)):
                 self.zero()
             self.last_gsv_talker = t
             self.seen_gsv.add(t)
-            gnss = _TALKER_GNSS.get(t, 0)
         view = self.view
         used = self.used_prns
-        end = count // 4 * 4 - 1
-        k = 3
-        while k < end:  # one satellite per 4 fields; a PRN of 0 skips one field only
+        for sat in sats:
             if len(view) >= MAXCHANNELS:
-                self.zero()
+                self.zero()  # (the loop's view is still the full one, as in gpsd)
                 break
-            num = atoi(f[k])
-            k += 1
-            if num == 0:
-                continue
-            prn, ubx, sv = nmea_prn(talker, num, gnss)
-            sat = Satellite(prn, ubx, sv, _whole(f, k), _whole(f, k + 1), _whole(f, k + 2))
-            k += 3
-            if prn > 0 and sat.ss is not None and sat.ss > 0 and prn in used:
-                sat.used = True
-            view.append(sat)
+            if sat is not None:
+                view.append(sat[3] if sat[1] and sat[0] in used else sat[2])
         if self.part < self.awaited:
             return 0, True
-        if not any(s.azimuth != 0 for s in view):
+        if not any(s.azimuth_deg != 0 for s in view):
             self.zero()
             return 0, False
         self.complete = True
@@ -243,29 +280,46 @@ class Sky:
     # -------------------------------------------------------------- DOPs
     def fill_dop(self) -> None:
         """DOPs from the satellites used, where the receiver gave none (gpsd fill_dop)."""
-        rows = []
-        for s in self.view:
-            if not s.used or s.prn < 1:
-                continue
-            az, el = s.azimuth, s.elevation
-            if az is None or not 0 <= az <= 359 or el is None or abs(el) > 90:
-                continue
-            a, e = math.radians(az), math.radians(el)
-            rows.append((math.sin(a) * math.cos(e), math.cos(a) * math.cos(e), math.sin(e), 1.0))
-        if len(rows) < 4:
-            return
-        prod = [[sum(r[i] * r[j] for r in rows) for j in range(4)] for i in range(4)]
-        inv = _invert4(prod)
-        if inv is None:
-            return
-        d = [inv[i][i] for i in range(4)]
-        computed = {
-            "xdop": d[0], "ydop": d[1], "hdop": d[0] + d[1], "vdop": d[2],
-            "pdop": d[0] + d[1] + d[2], "tdop": d[3], "gdop": d[0] + d[1] + d[2] + d[3],
-        }  # fmt: skip
-        for name, v in computed.items():
-            if name not in self.dop and v >= 0.0:
-                self.dop[name] = math.sqrt(v)
+        key = tuple(
+            (s.azimuth_deg, s.elevation_deg)
+            for s in self.view
+            if s.used and s.prn >= 1 and s.azimuth_deg is not None and 0 <= s.azimuth_deg <= 359
+            and s.elevation_deg is not None and abs(s.elevation_deg) <= 90
+        )  # fmt: skip
+        dops = _DOPS.get(key)
+        if dops is None:
+            dops = _geometry_dops(key)
+            if len(_DOPS) >= 64:
+                _DOPS.clear()
+            _DOPS[key] = dops
+        dop = self.dop
+        for name, v in dops:
+            if name not in dop:
+                dop[name] = v
+
+
+_DOPS: dict[tuple, tuple] = {}  # the (azimuth, elevation) of the satellites used -> DOPs
+
+
+def _geometry_dops(az_el: tuple[tuple[float, float], ...]) -> tuple[tuple[str, float], ...]:
+    """The DOPs of satellites at these azimuths and elevations (degrees), each as (name,
+    value), those a singular geometry (or fewer than 4 satellites) leaves out omitted."""
+    rows = []
+    for az, el in az_el:
+        a, e = math.radians(az), math.radians(el)
+        rows.append((math.sin(a) * math.cos(e), math.cos(a) * math.cos(e), math.sin(e), 1.0))
+    if len(rows) < 4:
+        return ()
+    prod = [[sum(r[i] * r[j] for r in rows) for j in range(4)] for i in range(4)]
+    inv = _invert4(prod)
+    if inv is None:
+        return ()
+    d = [inv[i][i] for i in range(4)]
+    computed = {
+        "xdop": d[0], "ydop": d[1], "hdop": d[0] + d[1], "vdop": d[2],
+        "pdop": d[0] + d[1] + d[2], "tdop": d[3], "gdop": d[0] + d[1] + d[2] + d[3],
+    }  # fmt: skip
+    return tuple((name, math.sqrt(v)) for name, v in computed.items() if v >= 0.0)
 
 
 def _whole(f: tuple[str, ...], i: int) -> float | None:
