@@ -50,6 +50,7 @@ from drivers.nmea.fixstate import (
     Fix,
 )
 from drivers.nmea.local import Datum
+from drivers.nmea.memo import on_clear, table
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, Session
 from msgs import GpsFix, GpsSky
 from msgs.construct import expression_constructor, positional_constructor
@@ -64,8 +65,15 @@ _FIX_BITS = (TIME_SET | LATLON_SET | MODE_SET | STATUS_SET | ALTITUDE_SET | TRAC
              | MAGNETIC_TRACK_SET | SPEED_SET | CLIMB_SET | VNED_SET)  # fmt: skip
 
 
-_DAYS: dict[int, str] = {}
+_DAYS: dict[int, str] = table({})
 _LAST: list = [None, ""]  # the last time formatted (a fix and its sky share it)
+
+
+def _forget_last() -> None:
+    _LAST[:] = [None, ""]
+
+
+on_clear(_forget_last)
 
 
 def iso_time(ns: int | None) -> str:

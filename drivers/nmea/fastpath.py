@@ -36,6 +36,7 @@ from drivers.nmea.fields import NUMBERS as nums
 from drivers.nmea.fields import clock, ddmmyy, number
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
 from drivers.nmea.handlers import KNOTS_TO_MPS
+from drivers.nmea.memo import table
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, days_from_civil
 from drivers.nmea.sky import _gsa_fields, _gsv_fields
 
@@ -45,15 +46,15 @@ if TYPE_CHECKING:
 HOUR_NS = 3_600_000_000_000
 _NONE: dict = {}  # the new data the error model sees: none of the estimates it keeps
 _CACHE_MAX = 64
-_TIMES: dict[str, tuple[int | None, float | None]] = {}
-_DATES: dict[str, tuple] = {}
+_TIMES: dict[str, tuple[int | None, float | None]] = table({})
+_DATES: dict[str, tuple] = table({})
 # a GST's and a ZDA's fields after the time -> what they say (_gst_stats, _zda_date)
-_GST: dict[str, tuple] = {}
-_ZDA: dict[str, tuple] = {}
+_GST: dict[str, tuple] = table({})
+_ZDA: dict[str, tuple] = table({})
 # (talker, a GSA's fields text) -> what it says (sky._gsa_fields; () when too short)
-_GSA: dict[tuple[str, str], tuple] = {}
+_GSA: dict[tuple[str, str], tuple] = table({})
 # (talker, a GSV's fields text) -> what it says (sky._gsv_fields)
-_GSV: dict[tuple[str, str], tuple] = {}
+_GSV: dict[tuple[str, str], tuple] = table({})
 
 
 def _time(s: str) -> tuple[int | None, float | None]:
@@ -133,7 +134,7 @@ def gsv(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     key = (talker, rest)
     read = _GSV.get(key)
     if read is None:
-        read = _gsv_fields(talker, tuple(rest.split(",")))
+        read = _gsv_fields(talker, rest.split(","))
         if len(_GSV) >= _CACHE_MAX:
             _GSV.clear()
         _GSV[key] = read

@@ -19,6 +19,8 @@ from __future__ import annotations
 import math
 import re
 
+from drivers.nmea.memo import table
+
 _NUMBER = re.compile(r"\s*([-+]?)(\d*)(?:\.(\d*))?(?:[eE]([-+]?\d+))?")
 _INT = re.compile(r"\s*([-+]?\d+)")
 _START = frozenset("0123456789-+.")
@@ -41,7 +43,7 @@ def fnum(s: str) -> float | None:
     return v
 
 
-NUMBERS: dict[str, float | None] = {}  # field -> fnum(field), for number()
+NUMBERS: dict[str, float | None] = table({})  # field -> fnum(field), for number()
 
 
 def number(s: str) -> float | None:
@@ -90,7 +92,7 @@ def atoi(s: str) -> int:
     return int(m.group(1)) if m else 0
 
 
-_HHMMSS: dict[str, int | None] = {}
+_HHMMSS: dict[str, int | None] = table({})
 
 
 def hhmmss_ns(s: str) -> int | None:
@@ -177,7 +179,7 @@ def _tail(tail: str) -> tuple[int, int, int]:
 _HHMM = {f"{h:02d}{m:02d}": ((h * 60 + m) * 60_000_000_000, (h * 100 + m) * 100)
          for h in range(24) for m in range(60)}  # fmt: skip
 _SS = {f"{sec:02d}": (sec * 1_000_000_000, sec) for sec in range(61)}
-_TAIL: dict[str, tuple[int, int, int]] = {}
+_TAIL: dict[str, tuple[int, int, int]] = table({})
 _POW10 = tuple(10**k for k in range(130))
 
 
@@ -232,10 +234,10 @@ def _degrees_read(field: str) -> float | None:
     return (minutes + f) * (1.0 / 60.0)
 
 
-_MINUTES: dict[str, int] = {}  # a position field's whole minutes (digits) -> deg * 60 + min
+_MINUTES: dict[str, int] = table({})  # a position field's whole minutes (digits) -> deg * 60 + min
 
 
-_LATLON: dict[tuple[str, str, str, str], tuple[float, float] | None] = {}
+_LATLON: dict[tuple[str, str, str, str], tuple[float, float] | None] = table({})
 _NOT_READ = object()
 
 

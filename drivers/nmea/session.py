@@ -36,6 +36,7 @@ from drivers.nmea.fixstate import (
     Fix,
     merge,
 )
+from drivers.nmea.memo import on_clear
 from drivers.nmea.sky import Sky
 
 ROLLOVER_S = 1024 * 7 * 86400
@@ -86,6 +87,9 @@ def days_from_civil(y: int, m: int, d: int) -> int:
     doy = (153 * (m + (-3 if m > 2 else 9)) + 2) // 5
     doe = yoe * 365 + yoe // 4 - yoe // 100 + doy
     return era * 146097 + doe - 719468 + d - 1
+
+
+on_clear(days_from_civil.cache_clear)
 
 
 class Session:

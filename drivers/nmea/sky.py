@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import math
 
-from drivers.nmea.fields import atoi, fnum
+from drivers.nmea.fields import atoi, number
 from drivers.nmea.fixstate import DOP_SET, MODE_SET, SATELLITE_SET, USED_IS
+from drivers.nmea.memo import table
 from msgs import GpsSatellite
 from msgs.construct import positional_constructor
 
@@ -84,95 +85,90 @@ def nmea_prn(talker: str, num: int, gnss: int = 0) -> tuple[int, int, int]:
     return 0, 0, 0
 
 
-_GSA_CACHE: dict[tuple[str, tuple[str, ...]], tuple] = {}
+# the 1- to 3-digit numbers (zero-padded too) -> their value: what atoi reads of them
+_INTS = {f"{i:0{w}d}": i for w in (1, 2, 3) for i in range(10**w)}
 
 
-def _gsa_fields(talker: str, f: tuple[str, ...]) -> tuple[int, bool, dict, tuple[int, ...]]:
+def _gsa_fields(
+    talker: str, f: tuple[str, ...] | list[str]
+) -> tuple[int, bool, dict, tuple[int, ...]]:
     """What a GSA says, without the session: (mode, whether it sets the mode, its DOPs,
-    the PRNs used). A receiver repeats its GSA from epoch to epoch: the last ones are kept.
-    gpsd reads count - 6 PRN fields, so a NMEA 4.10 GSA (with a system id) reads its PDOP
-    field as one more PRN; so does this."""
-    key = (talker, f)
-    hit = _GSA_CACHE.get(key)
-    if hit is not None:
-        return hit
+    the PRNs used). gpsd reads count - 6 PRN fields, so a NMEA 4.10 GSA (with a system
+    id) reads its PDOP field as one more PRN; so does this."""
     count = len(f) + 1
     dops = {}
     if count <= 19:
         for i, name in ((14, "pdop"), (15, "hdop"), (16, "vdop")):
-            v = fnum(f[i])
+            v = number(f[i])
             if v is not None and v < 99.0:
                 dops[name] = v
     gnss = _TALKER_GNSS.get(talker[1:2], 0)
     prns = []
-    for i in range(count - 6):
-        num = atoi(f[i + 2])
+    for i in range(2, count - 4):
+        num = _INTS.get(f[i])
+        if num is None:
+            num = atoi(f[i])
         if num >= 1:
             prn = nmea_prn(talker, num, gnss)[0]
             if prn > 0:
                 prns.append(prn)
-    out = (atoi(f[1]), f[1][:1] != "E", dops, tuple(prns))
-    if len(_GSA_CACHE) >= 64:
-        _GSA_CACHE.clear()
-    _GSA_CACHE[key] = out
-    return out
+    return (atoi(f[1]), f[1][:1] != "E", dops, tuple(prns))
 
 
 # A satellite in the view is the message itself (immutable, so one object serves every
 # epoch that repeats its fields): GpsSatellite(prn, gnss_id, sv_id, el, az, ss, used).
 _satellite = positional_constructor(GpsSatellite)
-_SATS: dict[tuple, tuple] = {}  # (talker, gnss, its four fields) -> _sat_entry(...)
-_GSV: dict[tuple[str, tuple[str, ...]], tuple] = {}  # (talker, fields) -> _gsv_fields(...)
+_SATS: dict[tuple, tuple] = table({})  # (talker, gnss, its four fields) -> _sat_entry(...)
+_WHOLES = {k: float(v) for k, v in _INTS.items()} | {"": None}  # ... and _whole
 
 
-def _sat_entry(talker: str, gnss: int, num: int, f: tuple[str, ...], k: int) -> tuple:
+def _sat_entry(talker: str, gnss: int, num: int, f: tuple[str, ...] | list[str], k: int) -> tuple:
     """One GSV satellite (``f[k:k+3]`` its elevation, azimuth and signal to noise):
-    (PRN, whether a GSA may mark it used, the satellite not used, the satellite used)."""
+    (PRN, whether a GSA may mark it used, the satellite not used, the satellite used, its
+    (azimuth, elevation) if fill_dop may use them, else None)."""
     prn, ubx, sv = nmea_prn(talker, num, gnss)
     el, az, ss = _whole(f, k), _whole(f, k + 1), _whole(f, k + 2)
     usable = prn > 0 and ss is not None and ss > 0
+    seen = az is not None and 0 <= az <= 359 and el is not None and abs(el) <= 90
     return (prn, usable, _satellite(prn, ubx, sv, el, az, ss, False),
-            _satellite(prn, ubx, sv, el, az, ss, True))  # fmt: skip
+            _satellite(prn, ubx, sv, el, az, ss, True), (az, el) if seen else None)  # fmt: skip
 
 
-def _gsv_fields(talker: str, f: tuple[str, ...]) -> tuple:
+def _gsv_fields(talker: str, f: tuple[str, ...] | list[str]) -> tuple:
     """What a GSV says, without the session: () when it has a count of fields gpsd
     refuses, else (signal id, parts, this part, satellites): one entry per satellite
     field gpsd reads, None for a PRN of 0 (which skips one field only), else
     :func:`_sat_entry`'s. The GNSS id of the talker applies to the first part only (as
-    in gpsd). A receiver repeats its GSV sentences and satellites: the last are kept."""
-    key = (talker, f)
-    hit = _GSV.get(key)
-    if hit is not None:
-        return hit
+    in gpsd). A receiver repeats its satellites: the last ones read are kept."""
     count = len(f) + 1
-    out: tuple = ()
-    if count > 3 and count % 4 in (0, 1):
-        sigid = atoi(f[-1]) if count % 4 == 1 else 0
+    if count <= 3 or count % 4 not in (0, 1):
+        return ()
+    sigid = atoi(f[-1]) if count % 4 == 1 else 0
+    part = _INTS.get(f[1])
+    if part is None:
         part = atoi(f[1])
-        gnss = _TALKER_GNSS.get(talker[1:2], 0) if part == 1 else 0
-        sats: list = []
-        end = count // 4 * 4 - 1
-        k = 3
-        while k < end and part >= 1:
-            num = atoi(f[k])
-            k += 1
-            if num == 0:
-                sats.append(None)
-                continue
-            skey = (talker, gnss, num, f[k : k + 3])
-            sat = _SATS.get(skey)
-            if sat is None:
-                if len(_SATS) >= 512:
-                    _SATS.clear()
-                sat = _SATS[skey] = _sat_entry(talker, gnss, num, f, k)
-            sats.append(sat)
-            k += 3
-        out = (sigid, atoi(f[0]), part, tuple(sats))
-    if len(_GSV) >= 64:
-        _GSV.clear()
-    _GSV[key] = out
-    return out
+    gnss = _TALKER_GNSS.get(talker[1:2], 0) if part == 1 else 0
+    sats: list = []
+    end = count // 4 * 4 - 1
+    k = 3
+    while k < end and part >= 1:
+        field = f[k]
+        num = _INTS.get(field)
+        if num is None:
+            num = atoi(field)
+        k += 1
+        if num == 0:
+            sats.append(None)
+            continue
+        key = (talker, gnss, field, *f[k : k + 3])
+        sat = _SATS.get(key)
+        if sat is None:
+            if len(_SATS) >= 512:
+                _SATS.clear()
+            sat = _SATS[key] = _sat_entry(talker, gnss, num, f, k)
+        sats.append(sat)
+        k += 3
+    return (sigid, atoi(f[0]), part, tuple(sats))
 
 
 class Sky:
@@ -182,6 +178,9 @@ class Sky:
         self.used_prns: tuple[int, ...] = ()
         self.used_count = 0  # satellites used: GSA's list, or GGA's count when it came later
         self.view: list[GpsSatellite] = []
+        # (azimuth, elevation) of the satellites used in the view whose direction is known,
+        # in its order: what fill_dop computes the DOPs of
+        self.geometry: list[tuple[float, float]] = []
         self.dop: dict[str, float] = {}  # xdop ydop hdop vdop pdop tdop gdop
         self.last_gsa_talker = ""
         self.last_gsv_talker = ""
@@ -238,6 +237,7 @@ class Sky:
     # -------------------------------------------------------------- GSV
     def zero(self) -> None:
         self.view = []
+        self.geometry = []
 
     def gsv(self, talker: str, f: tuple[str, ...]) -> tuple[int, bool]:
         """One GSV sentence -> (mask, more parts to come)."""
@@ -259,13 +259,20 @@ class Sky:
             self.last_gsv_talker = t
             self.seen_gsv.add(t)
         view = self.view
+        geometry = self.geometry
         used = self.used_prns
         for sat in sats:
             if len(view) >= MAXCHANNELS:
                 self.zero()  # (the loop's view is still the full one, as in gpsd)
                 break
-            if sat is not None:
-                view.append(sat[3] if sat[1] and sat[0] in used else sat[2])
+            if sat is None:
+                continue
+            if sat[1] and sat[0] in used:
+                view.append(sat[3])
+                if sat[4] is not None:
+                    geometry.append(sat[4])
+            else:
+                view.append(sat[2])
         if self.part < self.awaited:
             return 0, True
         if not any(s.azimuth_deg != 0 for s in view):
@@ -280,12 +287,7 @@ class Sky:
     # -------------------------------------------------------------- DOPs
     def fill_dop(self) -> None:
         """DOPs from the satellites used, where the receiver gave none (gpsd fill_dop)."""
-        key = tuple(
-            (s.azimuth_deg, s.elevation_deg)
-            for s in self.view
-            if s.used and s.prn >= 1 and s.azimuth_deg is not None and 0 <= s.azimuth_deg <= 359
-            and s.elevation_deg is not None and abs(s.elevation_deg) <= 90
-        )  # fmt: skip
+        key = tuple(self.geometry)
         dops = _DOPS.get(key)
         if dops is None:
             dops = _geometry_dops(key)
@@ -298,48 +300,69 @@ class Sky:
                 dop[name] = v
 
 
-_DOPS: dict[tuple, tuple] = {}  # the (azimuth, elevation) of the satellites used -> DOPs
+_DOPS: dict[tuple, tuple] = table({})  # the (azimuth, elevation) of the satellites used -> DOPs
 
 
 def _geometry_dops(az_el: tuple[tuple[float, float], ...]) -> tuple[tuple[str, float], ...]:
     """The DOPs of satellites at these azimuths and elevations (degrees), each as (name,
-    value), those a singular geometry (or fewer than 4 satellites) leaves out omitted."""
-    rows = []
+    value), those a singular geometry (or fewer than 4 satellites) leaves out omitted:
+    the diagonal of the inverse of the normal matrix of the unit vectors (east, north,
+    up, 1), by Gauss-Jordan elimination with partial pivoting. The matrix's sums run in
+    the satellites' order (it is symmetric: 10 of them)."""
+    if len(az_el) < 4:
+        return ()
+    xx = xy = xz = xw = yy = yz = yw = zz = zw = ww = 0.0
     for az, el in az_el:
         a, e = math.radians(az), math.radians(el)
-        rows.append((math.sin(a) * math.cos(e), math.cos(a) * math.cos(e), math.sin(e), 1.0))
-    if len(rows) < 4:
-        return ()
-    prod = [[sum(r[i] * r[j] for r in rows) for j in range(4)] for i in range(4)]
-    inv = _invert4(prod)
-    if inv is None:
-        return ()
-    d = [inv[i][i] for i in range(4)]
-    computed = {
-        "xdop": d[0], "ydop": d[1], "hdop": d[0] + d[1], "vdop": d[2],
-        "pdop": d[0] + d[1] + d[2], "tdop": d[3], "gdop": d[0] + d[1] + d[2] + d[3],
-    }  # fmt: skip
-    return tuple((name, math.sqrt(v)) for name, v in computed.items() if v >= 0.0)
+        ce = math.cos(e)
+        x, y, z = math.sin(a) * ce, math.cos(a) * ce, math.sin(e)
+        xx += x * x
+        xy += x * y
+        xz += x * z
+        xw += x
+        yy += y * y
+        yz += y * z
+        yw += y
+        zz += z * z
+        zw += z
+        ww += 1.0
+    m = [
+        [xx, xy, xz, xw, 1.0, 0.0, 0.0, 0.0],
+        [xy, yy, yz, yw, 0.0, 1.0, 0.0, 0.0],
+        [xz, yz, zz, zw, 0.0, 0.0, 1.0, 0.0],
+        [xw, yw, zw, ww, 0.0, 0.0, 0.0, 1.0],
+    ]
+    for c in range(4):
+        p, best = c, abs(m[c][c])  # (the first row of the largest magnitude)
+        for r in range(c + 1, 4):
+            v = abs(m[r][c])
+            if v > best:
+                p, best = r, v
+        if best < 1e-12:
+            return ()
+        m[c], m[p] = m[p], m[c]
+        row = m[c]
+        piv = row[c]
+        row = m[c] = [x / piv for x in row]
+        for r in range(4):
+            if r != c:
+                mr = m[r]
+                k = mr[c]
+                if k != 0.0:
+                    m[r] = [x - k * y for x, y in zip(mr, row, strict=True)]
+    d0, d1, d2, d3 = m[0][4], m[1][5], m[2][6], m[3][7]
+    computed = (("xdop", d0), ("ydop", d1), ("hdop", d0 + d1), ("vdop", d2),
+                ("pdop", d0 + d1 + d2), ("tdop", d3), ("gdop", d0 + d1 + d2 + d3))  # fmt: skip
+    return tuple((name, math.sqrt(v)) for name, v in computed if v >= 0.0)
 
 
-def _whole(f: tuple[str, ...], i: int) -> float | None:
+def _whole(f: tuple[str, ...] | list[str], i: int) -> float | None:
     """A GSV number as gpsd reads it: the integer part, None when the field is empty."""
     v = f[i] if i < len(f) else ""
-    return float(atoi(v)) if v else None
+    w = _WHOLES.get(v, _NOT_READ)
+    if w is _NOT_READ:
+        return float(atoi(v))
+    return w  # type: ignore[return-value]
 
 
-def _invert4(m: list[list[float]]) -> list[list[float]] | None:
-    """Inverse of a 4x4 matrix (Gauss-Jordan, partial pivoting); None if singular."""
-    a = [row[:] + [1.0 if i == j else 0.0 for j in range(4)] for i, row in enumerate(m)]
-    for c in range(4):
-        p = max(range(c, 4), key=lambda r: abs(a[r][c]))
-        if abs(a[p][c]) < 1e-12:
-            return None
-        a[c], a[p] = a[p], a[c]
-        piv = a[c][c]
-        a[c] = [x / piv for x in a[c]]
-        for r in range(4):
-            if r != c and a[r][c] != 0.0:
-                k = a[r][c]
-                a[r] = [x - k * y for x, y in zip(a[r], a[c], strict=True)]
-    return [row[4:] for row in a]
+_NOT_READ = object()
