@@ -86,10 +86,13 @@ def _nearer_than(lat1, lon1, lat2, lon2, d: float) -> bool:
     if lat1 is None or lon1 is None or lat2 is None or lon2 is None:
         return False
     dlon = abs(lon2 - lon1) % 360.0
-    bound = _M_MAX * math.radians(abs(lat2 - lat1)) + _PARALLEL_MAX * math.radians(
-        min(dlon, 360.0 - dlon)
-    )
-    return bound * 1.001 + 0.01 < d
+    if dlon > 180.0:
+        dlon = 360.0 - dlon
+    return (_M_DEG * abs(lat2 - lat1) + _PARALLEL_DEG * dlon) * 1.001 + 0.01 < d
+
+
+_M_DEG = _M_MAX * math.pi / 180.0  # (metres in a degree, at most)
+_PARALLEL_DEG = _PARALLEL_MAX * math.pi / 180.0
 
 
 def deferred_speed(lat1, lon1, lat2, lon2, dt: float) -> float | None:
@@ -213,9 +216,10 @@ def error_model(st: Session, new: dict) -> None:
         epx, epy = fix.epx, fix.epy
         # (C's x > y ? x : y, a NaN (None) comparing false)
         opp = epx if epx is not None and epy is not None and epx > epy else epy
-        if old.epx is not None and old.epy is not None and "eps" not in new:
-            a = _emax(old.epx, old.epy)
-            fix.eps = None if a is None or opp is None else (a + opp) / dt
+        a, b = old.epx, old.epy
+        if a is not None and b is not None and "eps" not in new:
+            a = a if a > b else b
+            fix.eps = None if opp is None else (a + opp) / dt
         if (
             fix.epd is None
             and opp is not None

@@ -58,12 +58,11 @@ _GSV: dict[tuple[str, str], tuple] = table({})
 
 
 def _time(s: str) -> tuple[int | None, float | None]:
-    """(time of day in ns, the field as a number): what the cycle detector registers."""
-    t = _TIMES.get(s)
-    if t is None:
-        if len(_TIMES) >= _CACHE_MAX:
-            _TIMES.clear()
-        t = _TIMES[s] = clock(s)
+    """(time of day in ns, the field as a number): what the cycle detector registers
+    (readers look in ``_TIMES`` first: ``_TIMES.get(s) or _time(s)``)."""
+    if len(_TIMES) >= _CACHE_MAX:
+        _TIMES.clear()
+    t = _TIMES[s] = clock(s)
     return t
 
 
@@ -107,13 +106,12 @@ def gsa(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     # --- the ordinary GSA from here on (Session.parse, Sky.gsa)
     st.latch_frac = st.gsx_more = False
     sky = st.sky
-    new: dict = {}
-    mask = sky.gsa_read(talker, read, new)
+    mask = sky.gsa_read(talker, read)
     sky.last_gsv_talker = ""
     fix = st.fix
     changed = False
     if mask & MODE_SET:  # (it is all of GSA's that makes an epoch worth a fix)
-        mode = new.get("mode", 0)
+        mode = read[0]
         if mode != MODE_NO_FIX and mode != MODE_3D and fix.mode == MODE_3D and st._had_altitude():
             mode = MODE_3D
         comb._pending = True
@@ -121,7 +119,7 @@ def gsa(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         if fix.mode != mode:
             fix.mode = mode
             changed = True
-    elif comb._pending and comb._snap is None and new:
+    elif comb._pending and comb._snap is None:  # (the new data: the mode)
         comb._snap = fix.copy()
     if changed or sky.dop != st._dops or st._unnormed:
         error_model(st, _NONE)
@@ -200,7 +198,7 @@ def gst(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     sky = st.sky
     sky.last_gsv_talker = sky.last_gsa_talker = ""
     st.gst = stats
-    st.gst_tod = _time(f0)[0]
+    st.gst_tod = (_TIMES.get(f0) or _time(f0))[0]
     if st._unnormed:
         error_model(st, _NONE)
     comb._stamp_ns = stamp
@@ -210,7 +208,15 @@ def gst(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
 def _gst_stats(tail: str) -> tuple:
     """The 7 numbers of a GST after its time (handlers.gst), () if it has fewer."""
     f = tail.split(",")
-    stats = tuple(map(number, f[:7])) if len(f) >= 7 else ()
+    if len(f) >= 7:
+        a, b, c, d, e, g, h = f[:7]
+        get = nums.get  # (number(), the empty fields and the table looked at first)
+        stats = ((get(a) or number(a)) if a else None, (get(b) or number(b)) if b else None,
+                 (get(c) or number(c)) if c else None, (get(d) or number(d)) if d else None,
+                 (get(e) or number(e)) if e else None, (get(g) or number(g)) if g else None,
+                 (get(h) or number(h)) if h else None)  # fmt: skip
+    else:
+        stats = ()
     if len(_GST) >= _CACHE_MAX:
         _GST.clear()
     _GST[tail] = stats
@@ -222,7 +228,7 @@ def zda(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     date = _ZDA.get(tail)
     if date is None:
         date = _zda_date(tail)
-    ns = _time(f0)[0]
+    ns = (_TIMES.get(f0) or _time(f0))[0]
     if not date or ns is None:
         return reference(rest, stamp, out, comb, talker, "ZDA")
     # --- the ordinary ZDA from here on (Session.parse, handlers.zda, Session.set_date)

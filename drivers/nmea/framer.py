@@ -204,11 +204,17 @@ class NmeaFramer:
         ``routes[address](rest, stamp_ns, out)``; an address not in ``routes`` yet gets
         ``new_route(talker, type)`` (False there marks an address that is none)."""
         buf = self._buf
-        buf += data
-        end = buf.rfind(b"\n")
+        if buf:
+            buf += data
+            end = buf.rfind(b"\n")
+            region = bytes(buf[:end]) if end >= 0 else b""
+            if end >= 0:
+                del buf[: end + 1]
+        else:  # (nothing pending: the lines are cut out of data itself, two copies less)
+            end = data.rfind(b"\n")
+            region = data[:end] if end >= 0 else b""
+            buf += data[end + 1 :]
         if end >= 0:
-            region = bytes(buf[:end])
-            del buf[: end + 1]
             if region.isascii():
                 if len(region) >= _NUMPY_FROM:
                     starts, ends, verdicts, lengths, keys = _classify(region, self.max_line)
@@ -294,8 +300,9 @@ class NmeaFramer:
         is a sentence's fields."""
         skipped = bad = 0
         for r, e, key in zip(rests, ends, keys, strict=True):
-            route = routes.get(key)
-            if route is None:
+            try:
+                route = routes[key]
+            except KeyError:
                 address = text[r - 1 - (key >> 56) : r - 1]
                 route = routes.get(address)
                 if route is None:

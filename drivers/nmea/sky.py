@@ -194,27 +194,25 @@ class Sky:
     def gsa(self, talker: str, f: tuple[str, ...], new: dict, latch_mode: bool) -> int:
         """One GSA: mode, DOPs, satellites used. ``f`` excludes the address field."""
         read = _gsa_fields(talker, f) if len(f) + 1 >= 18 and not latch_mode else None
-        return self.gsa_read(talker, read, new)
+        if read is not None:
+            new["mode"] = read[0]
+        return self.gsa_read(talker, read)
 
-    def gsa_read(self, talker: str, read: tuple | None, new: dict) -> int:
+    def gsa_read(self, talker: str, read: tuple | None) -> int:
         """One GSA of what :func:`_gsa_fields` read (None: too short, or after a latched
-        GGA; its talker still counts)."""
+        GGA; its talker still counts); the mode it gives is ``read[0]``."""
         t = talker[1:2]
         last_last = self.last_gsa_talker
         mask = 0
         if read is not None:
             mode, mode_set, dops, prns = read
-            new["mode"] = mode
             if mode_set:
                 mask = MODE_SET
             prev_used, prev_count = self.used_prns, self.used_count
             dop_changed = False
             if dops:
                 dop = self.dop
-                for name, v in dops.items():
-                    if dop.get(name) != v:
-                        dop_changed = True
-                        break
+                dop_changed = not dops.items() <= dop.items()  # (a DOP new or not the same)
                 dop.update(dops)
                 mask |= DOP_SET
             if last_last == "" or (t == last_last and t != "N"):
@@ -224,9 +222,9 @@ class Sky:
             self.used_prns = used
             self.last_gsa_talker = t
             self.seen_gsa.add(t)
-            self.used_count = len(used)
+            self.used_count = count = len(used)
             mask |= USED_IS
-            if dop_changed or prev_count != self.used_count or prev_used != used:
+            if dop_changed or prev_count != count or prev_used != used:
                 self.changed = True  # a GSA repeating the last one changes nothing
         if t == "P" and self.seen_gsa & _OTHERS:
             mask = 0
