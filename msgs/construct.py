@@ -15,6 +15,9 @@ It applies to frozen, slotted dataclasses without ``__post_init__`` (every messa
 for any other class (a message type that changes its representation later) it returns the
 class itself, so callers stay correct. The function takes every field, positionally, in
 declaration order: no defaults, no checks (the decoders pass values of the right types).
+:func:`expression_constructor` is the same with each field given by an expression over
+parameters of the caller's choice (a decoder passes the object it reads the values from,
+not the values: ``{"lat_deg": "f.lat"}``), the others their defaults.
 """
 
 from __future__ import annotations

@@ -125,6 +125,43 @@ def _velocities(fix) -> None:
             fix.track = math.degrees(math.atan2(fix.vel_e, fix.vel_n))
 
 
+def _tracks(st: Session, fix) -> None:
+    """The true track from the magnetic one and the variation, or the magnetic from the
+    true; each moved into 0-360 degrees by 360 once, as gpsd does (``st._unnormed``: one
+    is still outside, so another run would move it again)."""
+    track, magvar, magtrack = fix.track, fix.magvar, fix.magtrack
+    if magvar is not None:
+        if magtrack is None and track is not None:
+            fix.magtrack = magtrack = track + magvar
+        elif magtrack is not None and track is None:
+            track = magtrack - magvar
+    unnormed = False
+    if track is not None and not 0.0 <= track < 360.0:
+        track = _norm360(track)
+        unnormed = not 0.0 <= track < 360.0
+    fix.track = track
+    if magtrack is not None and not 0.0 <= magtrack < 360.0:
+        fix.magtrack = magtrack = _norm360(magtrack)
+        unnormed = unnormed or not 0.0 <= magtrack < 360.0
+    st._unnormed = unnormed
+
+
+def motion_model(st: Session) -> None:
+    """:func:`error_model` after a sentence that changed only the speed, the true or the
+    magnetic track or the variation of a fix, when the model ran on that fix after its
+    other fields last changed, the DOPs are those it saw, no track was left outside
+    0-360 degrees, the fix has no velocities and its speed is known (the caller's
+    conditions): the rest of the model then comes out as it was (the same fix, times,
+    previous fix and DOPs), so what it does is check the speed and the tracks. An
+    insane speed (which the model makes unknown, then deferred) takes the whole model."""
+    fix = st.fix
+    speed = fix.speed
+    if speed is not None and abs(speed) > _MAX_RATE:  # (False for a deferred speed)
+        error_model(st, {})
+        return
+    _tracks(st, fix)
+
+
 def error_model(st: Session, new: dict) -> None:
     """Update ``st.fix`` after a merge (``new``: what the sentence itself gave). The
     session keeps the DOPs this run saw (``st._dops``) and whether it left a track outside
@@ -157,21 +194,7 @@ def error_model(st: Session, new: dict) -> None:
     if fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
         _velocities(fix)
         speed = fix.speed
-    track, magvar, magtrack = fix.track, fix.magvar, fix.magtrack
-    if magvar is not None:
-        if magtrack is None and track is not None:
-            fix.magtrack = magtrack = track + magvar
-        elif magtrack is not None and track is None:
-            track = magtrack - magvar
-    unnormed = False
-    if track is not None and not 0.0 <= track < 360.0:
-        track = _norm360(track)
-        unnormed = not 0.0 <= track < 360.0
-    fix.track = track
-    if magtrack is not None and not 0.0 <= magtrack < 360.0:
-        fix.magtrack = magtrack = _norm360(magtrack)
-        unnormed = unnormed or not 0.0 <= magtrack < 360.0
-    st._unnormed = unnormed
+    _tracks(st, fix)
     sep = fix.geoid_sep
     if sep is not None:
         alt = fix.alt_msl

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from drivers.nmea.errmodel import error_model
+from drivers.nmea.errmodel import error_model, motion_model
 from drivers.nmea.fastpath import (
     _DATES,
     _NONE,
@@ -36,6 +36,8 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from drivers.nmea.epoch import EpochCombiner
+    from drivers.nmea.fixstate import Fix
+    from drivers.nmea.session import Session
 
 # GGA quality field -> (quality, gpsd status)
 _QUALITY = {str(q): (q, s) for q, s in _GGA_STATUS.items()}
@@ -161,6 +163,15 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         comb._report(out)
 
 
+def _motion(st: Session, fix: Fix, unknown_speed: bool) -> None:
+    """The error model after a change of speed or tracks alone (errmodel.motion_model,
+    when its conditions hold: no velocities, the speed not made unknown)."""
+    if unknown_speed or fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
+        error_model(st, _NONE)
+    else:
+        motion_model(st)
+
+
 def _new_epoch(comb: EpochCombiner, out: list) -> None:
     """EpochCombiner.new_epoch (and _close): the last epoch's fix and sky if not reported."""
     if comb._pending:
@@ -247,7 +258,7 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     else:
         comb._pending = True
         comb._snap = None
-        changed = False
+        changed = moved = False  # (moved: the speed, track or variation changed)
         if not time_ns and st.lastfix is fix:
             st.lastfix = fix.copy()
         if fix.time_ns != time_ns:
@@ -261,13 +272,13 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
             changed = True
         if speed_set and fix.speed != speed:
             fix.speed = speed
-            changed = True
+            moved = True
         if track_set and fix.track != track:
             fix.track = track
-            changed = True
+            moved = True
         if magvar is not None and fix.magvar != magvar:
             fix.magvar = magvar
-            changed = True
+            moved = True
         if fix.mode != mode:
             fix.mode = mode
             changed = True
@@ -276,6 +287,8 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
             changed = True
         if changed or sky.dop != st._dops or st._unnormed:
             error_model(st, _NONE)
+        elif moved:
+            _motion(st, fix, speed_set and speed is None)
     comb._stamp_ns = stamp
     comb._talker = talker
     comb._last_timed = "RMC"  # (EpochCombiner.timed)

@@ -31,7 +31,7 @@ from collections.abc import Callable
 from types import FunctionType
 from typing import TYPE_CHECKING
 
-from drivers.nmea.errmodel import error_model
+from drivers.nmea.errmodel import error_model, motion_model
 from drivers.nmea.fields import NUMBERS as nums
 from drivers.nmea.fields import clock, ddmmyy, number
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
@@ -180,8 +180,15 @@ def vtg(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     if fix.speed != speed:
         fix.speed = speed
         changed = True
-    if changed or st._unnormed:
+    if st._unnormed or (
+        changed
+        and (
+            speed is None or fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None
+        )
+    ):
         error_model(st, _NONE)
+    elif changed:  # (the speed and tracks alone: errmodel.motion_model's conditions hold)
+        motion_model(st)
     comb._stamp_ns = stamp
     comb._talker = talker
 

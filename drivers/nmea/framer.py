@@ -84,7 +84,8 @@ def _classify(region: bytes, max_line: int) -> tuple[np.ndarray, ...]:
     ``$`` and ``*`` equal to HH; BAD_SUM fails only the XOR; OTHER is anything else (the
     per-line path). The address (up to the first comma) is checked by the caller: of a
     line whose first comma is one of the 8 bytes after the ``$`` (and before the ``*``),
-    the address's length and :func:`_key`, else -1 for both."""
+    the address's length and :func:`_key`, else -1 for both. (A run of at least 8 bytes:
+    the framer checks runs from 512 bytes on this way.)"""
     a = np.frombuffer(region, dtype=np.uint8)
     size = len(a)
     nl = np.flatnonzero(a == 10)
