@@ -12,7 +12,11 @@ on the same sentences, pynmea2 parsing them and reading the same typed fields as
 baseline (``nmea_vs_pynmea2`` = our rate over pynmea2's; pynmea2 neither frames a byte
 stream nor combines epochs). The same pair runs on a second stream, a moving receiver's
 (``nmea_vs_pynmea2_moving``), where the altitude, speed, course, GST sigmas and now and
-then the DOPs and satellites change every epoch, so fewer fields repeat. A serial line
+then the DOPs and satellites change every epoch, so fewer fields repeat. A third pair runs
+on real receivers' sentences (``nmea_vs_pynmea2_real``): every gpsd regression log in
+``shared/data/gpsd`` (``HILNAV_SHARED`` points at another shared folder), their sentences
+concatenated in one stream; a sentence pynmea2 cannot parse, or whose fields it cannot
+read, is counted (``nmea_real_skipped``) and left out of both streams. A serial line
 carries 10 bits per byte (8N1).
 
 ``--baseline OLD_CHECKOUT`` measures that checkout's codecs with this script (in a
@@ -45,6 +49,15 @@ from drivers.irboard.canframe import pack_sample
 from drivers.irboard.codec import IrCanCodec, IrSerialCodec
 from drivers.irboard.serialframe import RawSample, encode_sample
 from drivers.nmea.codec import NmeaCodec
+
+try:
+    from drivers.nmea import clear_caches
+except ImportError:  # (older code, whose tables stay filled from call to call)
+
+    def clear_caches() -> None:
+        pass
+
+
 from drivers.nmea.writer import epoch_sentences
 from msgs import GpsFix
 
@@ -101,6 +114,27 @@ NMEA_MOVING = _nmea_sentences(moving=True)
 NMEA_MOVING_LINES = [line.decode("ascii") for line in NMEA_MOVING.splitlines() if line]
 
 
+def _real_sentences() -> tuple[bytes, list[str], int]:
+    """The sentences of every gpsd log in the shared folder: (the stream, its lines, the
+    number left out because pynmea2 fails on them). Comment and blank lines are no
+    sentences."""
+    shared = Path(os.environ.get("HILNAV_SHARED", Path(__file__).resolve().parents[2] / "shared"))
+    lines: list[str] = []
+    skipped = 0
+    for log in sorted((shared / "data" / "gpsd").glob("*.log")):
+        for raw in log.read_bytes().splitlines():
+            if not raw.startswith(b"$"):
+                continue
+            try:
+                line = raw.decode("ascii")
+                pynmea2_parse([line])
+            except Exception:  # (pynmea2's parse errors, and its fields' on odd values)
+                skipped += 1
+                continue
+            lines.append(line)
+    return "".join(f"{line}\r\n" for line in lines).encode("ascii"), lines, skipped
+
+
 def ir_serial_decode() -> int:
     IrSerialCodec().feed(IR_STREAM, 0)
     return len(SAMPLES)
@@ -119,6 +153,9 @@ def gyro_decode() -> int:
 
 
 def nmea_decode(stream: bytes = NMEA_STREAM, lines: list[str] = NMEA_LINES) -> int:
+    """Our codec on a stream, from empty tables of read fields (drivers/nmea/memo.py): a
+    stream decoded again would otherwise find its fields read already."""
+    clear_caches()
     for m in NmeaCodec().feed(stream, 0):
         if isinstance(m, GpsFix):
             _ = (m.time_utc, m.lat_deg, m.lon_deg, m.alt_msl_m, m.mode, m.satellites, m.hdop)
@@ -144,7 +181,12 @@ def pynmea2_parse(lines: list[str] = NMEA_LINES) -> int:
             _ = (m.true_track, m.spd_over_grnd_kts)
         elif kind == "ZDA":
             _ = m.datetime
+        elif kind == "GLL":
+            _ = (m.timestamp, m.latitude, m.longitude)
     return len(lines)
+
+
+NMEA_REAL, NMEA_REAL_LINES, NMEA_REAL_SKIPPED = _real_sentences()
 
 
 def _serial(bytes_per_unit: float, baud: int) -> float:
@@ -170,6 +212,15 @@ BENCHES: dict[str, tuple[Callable[[], int], float]] = {
         _serial(len(NMEA_MOVING) / len(NMEA_MOVING_LINES), 9600),
     ),
 }
+if NMEA_REAL_LINES:  # (without the shared folder's logs, no row)
+    BENCHES["nmea_real_decode"] = (
+        lambda: nmea_decode(NMEA_REAL, NMEA_REAL_LINES),
+        _serial(len(NMEA_REAL) / len(NMEA_REAL_LINES), 9600),
+    )
+    BENCHES["pynmea2_real_parse"] = (
+        lambda: pynmea2_parse(NMEA_REAL_LINES),
+        _serial(len(NMEA_REAL) / len(NMEA_REAL_LINES), 9600),
+    )
 
 
 def rate(fn: Callable[[], int], seconds: float = 0.2) -> float:
@@ -205,6 +256,10 @@ def check() -> None:
     for stream in (NMEA_STREAM, NMEA_MOVING):
         fixes = [m for m in NmeaCodec().feed(stream, 0) if isinstance(m, GpsFix)]
         assert len(fixes) >= 199 and fixes[0].mode == 3, len(fixes)
+    if NMEA_REAL_LINES:
+        codec = NmeaCodec()
+        fixes = [m for m in codec.feed(NMEA_REAL, 0) if isinstance(m, GpsFix)]
+        assert codec.stats.frames_ok == len(NMEA_REAL_LINES) and fixes, codec.stats
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -243,7 +298,12 @@ def main(argv: list[str] | None = None) -> dict:
         print(f" {old:>12,.0f} {old / line_rate:>13,.1f}" if old else "")
     if theirs:
         results["baseline"] = {k: round(v) for k, v in theirs.items()}
+    if NMEA_REAL_LINES:
+        results["nmea_real_sentences"] = len(NMEA_REAL_LINES)
+        results["nmea_real_skipped"] = NMEA_REAL_SKIPPED
     for ratio, ours_name, pynmea2_name in RATIOS:
+        if f"{ours_name}_per_s" not in results:
+            continue
         results[ratio] = round(results[f"{ours_name}_per_s"] / results[f"{pynmea2_name}_per_s"], 2)
         line = f"{ratio:26s} {results[ratio]:>12}"
         if f"{ours_name}_per_s" in theirs:
@@ -259,6 +319,7 @@ def main(argv: list[str] | None = None) -> dict:
 RATIOS = (
     ("nmea_vs_pynmea2", "nmea_sentence_decode", "pynmea2_sentence_parse"),
     ("nmea_vs_pynmea2_moving", "nmea_moving_decode", "pynmea2_moving_parse"),
+    ("nmea_vs_pynmea2_real", "nmea_real_decode", "pynmea2_real_parse"),
 )
 
 

@@ -17,7 +17,7 @@ import random
 
 import pytest
 
-from drivers.nmea import NmeaCodec, build
+from drivers.nmea import NmeaCodec, build, clear_caches
 from drivers.nmea import session as session_module
 from drivers.nmea.fixstate import FIELDS
 from drivers.nmea.writer import epoch_sentences
@@ -186,3 +186,100 @@ def test_edge_cases_of_the_fast_path():
     data = b"".join(build(x) for x in lines)
     for chunks in (None, [1], [40]):
         _same(data, chunks, random.Random(3))
+
+
+def sky_stream(rng: random.Random, epochs: int) -> bytes:
+    """Epochs of GGA, GSA, RMC, GSV sets, VTG and now and then a PSTI,030 (velocities),
+    with skies of every shape: several talkers, PRNs of every range and 0, fields left
+    empty, NMEA 4.10 signal ids, wrong part counts, sets of more than 130 satellites; and
+    speeds and tracks that are odd (insane, unreadable, out of 0-360, with a variation)."""
+    out: list[bytes] = []
+    t = dt.datetime(2026, 11, 23, 23, 59, 40, tzinfo=dt.UTC)
+    lat, lon = rng.uniform(-60, 60), rng.uniform(-170, 170)
+    sats = [(rng.choice([rng.randint(1, 32), rng.randint(33, 437), 0]), rng.randint(-5, 92),
+             rng.randint(0, 400), rng.choice(["", str(rng.randint(0, 55))]))
+            for _ in range(rng.choice([3, 8, 12, 20, 140]))]  # fmt: skip
+    for _ in range(epochs):
+        t += dt.timedelta(seconds=rng.choice([1, 1, 1, 0.5, 0]))
+        hms, ymd = t.strftime("%H%M%S.") + f"{t.microsecond // 10000:02d}", t.strftime("%d%m%y")
+        lat += rng.uniform(-1e-4, 1e-4)
+        la = f"{int(abs(lat)):02d}{abs(lat) % 1 * 60:08.5f},{'N' if lat >= 0 else 'S'}"
+        lo = f"{int(abs(lon)):03d}{abs(lon) % 1 * 60:08.5f},{'E' if lon >= 0 else 'W'}"
+        if rng.random() < 0.2:  # a sky that changes: elevation, azimuth, signal, the set
+            k = rng.randrange(len(sats))
+            sats[k] = (sats[k][0], rng.randint(-5, 92), rng.randint(0, 400),
+                       rng.choice(["", str(rng.randint(0, 55))]))  # fmt: skip
+        used = [p for p, *_ in sats if rng.random() < 0.7][: rng.choice([12, 12, 20])]
+        dops = [rng.choice(["1.6", "2.1", "", "99.0"]) for _ in range(3)]
+        speed = rng.choice(["0.52", "1.7", f"{rng.uniform(0, 40):.2f}", "", "abc", "99999.9"])
+        track = rng.choice(["87.0", f"{rng.uniform(0, 360):.1f}", "400.5", "-20.0", ""])
+        var = rng.choice(["", "", "3.5,W", "1.2,E"])
+        body = [f"GPGGA,{hms},{la},{lo},1,{len(used):02d},{dops[1] or '0.9'},38.5,M,18.2,M,,",
+                f"{rng.choice(['GP', 'GN', 'GL'])}GSA,A,{rng.choice([3, 3, 2, 1])},"
+                + ",".join(f"{p:02d}" for p in used) + ",," * max(0, 12 - len(used))
+                + ",".join(dops) + rng.choice(["", ",1"]),
+                f"GPRMC,{hms},A,{la},{lo},{speed},{track},{ymd},{var or ','},A"]  # fmt: skip
+        for talker in rng.sample(["GP", "GL", "GA", "BD"], rng.randint(1, 2)):
+            view = [s for s in sats if rng.random() < 0.9]
+            parts = [view[i : i + 4] for i in range(0, len(view), 4)] or [[]]
+            total = len(parts) + rng.choice([0, 0, 0, 1, -1])
+            for n, part in enumerate(parts, 1):
+                fields = ",".join(f"{p:02d},{el},{az:03d},{ss}" for p, el, az, ss in part)
+                sig = rng.choice(["", "", ",1", ",7"])
+                body.append(f"{talker}GSV,{total},{n},{len(view):02d},{fields}{sig}".rstrip(","))
+        body.append(f"GPVTG,{track},T,{rng.choice(['', '80.5'])},M,{speed},N,1.0,K,A")
+        if rng.random() < 0.2:
+            vel = ",".join(rng.choice(["0.10", "-0.20", "", "1e5"]) for _ in range(3))
+            body.append(f"PSTI,030,{hms},A,{la},{lo},38.5,{vel},{ymd},A,0.0,0.0")
+        out += [build(b) for b in body if rng.random() < 0.97]
+    return b"".join(out)
+
+
+def test_random_skies_speeds_and_tracks():
+    """GSV sets of every shape, velocities, and speeds and tracks that change alone or
+    are odd: the fast readers (GSV's, and the error model run on a change of speed or
+    track alone) leave what the reference leaves."""
+    rng = random.Random(23)
+    for _ in range(25):
+        data = sky_stream(rng, rng.randint(3, 25))
+        _same(data, rng.choice([None, [40, 500], [1, 7, 64]]), rng)
+        _same(_damaged(data, rng), None, rng)
+
+
+def test_hostile_bytes_are_counted_and_skipped():
+    """Bytes of any value, cut lines and runs of sentences glued together: both paths
+    count and skip the same, never raise, and agree on everything they decode."""
+    rng = random.Random(29)
+    clean = sky_stream(rng, 12) + _written(rng, 12)
+    for _ in range(30):
+        data = bytearray(clean)
+        for _ in range(rng.randint(1, 60)):
+            i = rng.randrange(len(data))
+            r = rng.random()
+            if r < 0.5:
+                data[i] = rng.randrange(256)
+            elif r < 0.7:
+                del data[i : i + rng.randint(1, 80)]
+            elif r < 0.85:
+                data[i:i] = bytes(rng.randrange(256) for _ in range(rng.randint(1, 200)))
+            else:
+                data[i:i] = rng.choice([b"\n", b"\r\n", b"$", b"*", b",", b"$GPGGA,", b"*00\r\n"])
+        codec = NmeaCodec()
+        _same(bytes(data), rng.choice([None, [3, 600], [40, 250]]), rng)
+        codec.feed(bytes(data), 0)
+        assert codec.stats.frames_ok <= bytes(data).count(b"$")
+
+
+def test_tables_change_no_result(logs):
+    """The readers' tables of read fields (drivers/nmea/memo.py) only make reading
+    faster: emptied between every chunk, the messages and the state are the same."""
+    rng = random.Random(31)
+    streams = [*logs.values(), sky_stream(rng, 20), _written(rng, 20)]
+    for data in streams:
+        warm, cold = NmeaCodec(), NmeaCodec()
+        for i in range(0, len(data), 97):
+            a = warm.feed(data[i : i + 97], i)
+            clear_caches()
+            assert cold.feed(data[i : i + 97], i) == a
+            assert _state(cold) == _state(warm)
+        assert warm.flush() == cold.flush()

@@ -4,6 +4,7 @@
 from drivers.nmea.codec import NmeaCodec, NmeaFramer
 from drivers.nmea.epoch import ROLLOVER_S, EpochCombiner
 from drivers.nmea.local import Datum
+from drivers.nmea.memo import clear_caches
 from drivers.nmea.sentences import Sentence, build, xor_checksum
 
 __all__ = [
@@ -14,5 +15,6 @@ __all__ = [
     "NmeaFramer",
     "Sentence",
     "build",
+    "clear_caches",
     "xor_checksum",
 ]

@@ -28,7 +28,8 @@ configured datum, or the first fix's position when none is configured.
 from __future__ import annotations
 
 import datetime as dt
-from dataclasses import replace
+from dataclasses import fields as dataclass_fields
+from operator import attrgetter
 
 from drivers.nmea.fixstate import (
     ALTITUDE_SET,
@@ -49,9 +50,10 @@ from drivers.nmea.fixstate import (
     Fix,
 )
 from drivers.nmea.local import Datum
+from drivers.nmea.memo import on_clear, table
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, Session
-from msgs import GpsFix, GpsSatellite, GpsSky
-from msgs.construct import positional_constructor
+from msgs import GpsFix, GpsSky
+from msgs.construct import expression_constructor, positional_constructor
 
 __all__ = ["ROLLOVER_S", "EpochCombiner", "iso_time"]
 
@@ -63,8 +65,15 @@ _FIX_BITS = (TIME_SET | LATLON_SET | MODE_SET | STATUS_SET | ALTITUDE_SET | TRAC
              | MAGNETIC_TRACK_SET | SPEED_SET | CLIMB_SET | VNED_SET)  # fmt: skip
 
 
-_DAYS: dict[int, str] = {}
+_DAYS: dict[int, str] = table({})
 _LAST: list = [None, ""]  # the last time formatted (a fix and its sky share it)
+
+
+def _forget_last() -> None:
+    _LAST[:] = [None, ""]
+
+
+on_clear(_forget_last)
 
 
 def iso_time(ns: int | None) -> str:
@@ -100,8 +109,9 @@ _MMM = tuple(f"{ms:03d}Z" for ms in range(1000))
 
 
 # What a fix without a 2D (3D) fix, or a GST of another second, shows: nothing.
-_make_fix = positional_constructor(GpsFix)
-_make_satellite = positional_constructor(GpsSatellite)
+_make_sky = positional_constructor(GpsSky)
+# a fix's fields but its stamp, as a tuple (what the dataclass's == compares)
+_but_stamp = attrgetter(*(f.name for f in dataclass_fields(GpsFix) if f.name != "stamp_ns"))
 _NO_GST = (None,) * 7
 
 
@@ -184,7 +194,7 @@ class EpochCombiner:
         fix = self._fix(self._snap or self.session.fix)
         self._snap = None
         last = self._last_fix
-        if last is None or replace(last, stamp_ns=fix.stamp_ns) != fix:
+        if last is None or _but_stamp(last) != _but_stamp(fix):  # (replace(...) != fix)
             out.append(fix)
             self._last_fix = fix
         if self.session.sky.changed:
@@ -196,80 +206,75 @@ class EpochCombiner:
         st = self.session
         sky = st.sky
         sky.changed = False
-        sats = tuple(
-            _make_satellite(s.prn, s.gnss_id, s.sv_id, s.elevation, s.azimuth, s.ss, s.used)
-            for s in sky.view
-            if s.prn
-        )
-        d = sky.dop
-        return GpsSky(
-            stamp_ns=self._stamp_ns,
-            time_utc=iso_time(st.fix.time_ns),
-            satellites=sats,
-            n_sat=len(sats) if sky.complete else None,
-            u_sat=sky.used_count,
-            hdop=d.get("hdop"),
-            vdop=d.get("vdop"),
-            pdop=d.get("pdop"),
-            xdop=d.get("xdop"),
-            ydop=d.get("ydop"),
-            tdop=d.get("tdop"),
-            gdop=d.get("gdop"),
-            talker=self._talker,
-        )
+        sats = tuple([s for s in sky.view if s.prn])  # (the view holds the messages)
+        get = sky.dop.get
+        return _make_sky(
+            self._stamp_ns, iso_time(st.fix.time_ns), sats, len(sats) if sky.complete else None,
+            sky.used_count, get("hdop"), get("vdop"), get("pdop"), get("xdop"), get("ydop"),
+            get("tdop"), get("gdop"), self._talker,
+        )  # fmt: skip
 
     def _fix(self, f: Fix) -> GpsFix:
         st = self.session
         mode = f.mode
         t = f.time_ns
-        east = north = None
-        # what a fix shows: the position and its kin with a 2D fix, the rest in 3D only
-        if mode >= MODE_2D:
-            lat, lon = f.lat, f.lon
-            if lat is not None and lon is not None:
-                if self.datum is None:
-                    self.datum = Datum(lat, lon)
-                east, north = self.datum.to_local(lat, lon)
-            speed = f.speed
-            if speed is DEFERRED:
-                speed = f.speed_now()
-            alt_msl = f.alt_msl
-            track = f.track
-            alt_hae = f.alt_hae
-            eph = f.eph
-            epv = f.epv
-            epx = f.epx
-            epy = f.epy
-            sep = f.sep
-            eps = f.eps
-            epd = f.epd
-            magvar = f.magvar
-            magtrack = f.magtrack
-            dgps_age = f.dgps_age
-            dgps_station = f.dgps_station
-            if mode >= MODE_3D:
-                geoid_sep = f.geoid_sep
-                climb = f.climb
-                epc = f.epc
-                vel_n = f.vel_n
-                vel_e = f.vel_e
-                vel_d = f.vel_d
-            else:
-                geoid_sep = climb = epc = vel_n = vel_e = vel_d = None
-        else:
-            lat = lon = alt_msl = speed = track = alt_hae = eph = epv = epx = epy = sep = None
-            eps = epd = magvar = magtrack = dgps_age = dgps_station = None
-            geoid_sep = climb = epc = vel_n = vel_e = vel_d = None
         gst = st.gst
         if gst is None or t is None or st.gst_tod != t % DAY_NS:
             gst = _NO_GST
-        dop = st.sky.dop
-        quality = st.quality if st.quality is not None else (1 if mode >= MODE_2D else 0)
-        sats = st.gga_sats if st.gga_sats is not None else st.sky.used_count or None
-        return _make_fix(
-            self._stamp_ns, iso_time(t), lat, lon, alt_msl, geoid_sep, mode, quality, sats,
-            dop.get("hdop"), dop.get("pdop"), dop.get("vdop"), speed, track, gst[4], gst[5],
-            gst[6], east, north, self._talker, f.status, alt_hae, climb, eph, epv, epx, epy,
-            sep, f.ept if t is not None else None, eps, epc, epd, magvar, magtrack, dgps_age,
-            dgps_station, vel_n, vel_e, vel_d, st.leap_seconds, gst[0], gst[1], gst[2], gst[3],
+        quality = st.quality
+        if quality is None:
+            quality = 1 if mode >= MODE_2D else 0
+        sats = st.gga_sats
+        if sats is None:
+            sats = st.sky.used_count or None
+        ept = f.ept if t is not None else None
+        # what a fix shows: the position and its kin with a 2D fix, the rest in 3D only
+        if mode >= MODE_2D:
+            lat, lon = f.lat, f.lon
+            east = north = None
+            if lat is not None and lon is not None:
+                datum = self.datum
+                if datum is None:
+                    datum = self.datum = Datum(lat, lon)
+                east, north = datum.to_local(lat, lon)
+            speed = f.speed
+            if speed is DEFERRED:
+                speed = f.speed_now()
+            return (_fix_3d if mode >= MODE_3D else _fix_2d)(
+                f, self._stamp_ns, iso_time(t), quality, sats, st.sky.dop, gst, east, north,
+                self._talker, speed, ept, st.leap_seconds,
+            )  # fmt: skip
+        return _fix_none(
+            f, self._stamp_ns, iso_time(t), quality, sats, st.sky.dop, gst, None, None,
+            self._talker, None, ept, st.leap_seconds,
         )  # fmt: skip
+
+
+# A GpsFix of a Fix f (the fields' names differ: lat_deg is f.lat, ...), by mode: the
+# values every fix shows, those shown with a 2D fix, and those shown in 3D only.
+_SHOWN = {
+    "stamp_ns": "stamp", "time_utc": "time_utc", "mode": "f.mode", "quality": "quality",
+    "satellites": "sats", "hdop": "dop.get('hdop')", "pdop": "dop.get('pdop')",
+    "vdop": "dop.get('vdop')", "std_lat_m": "gst[4]", "std_lon_m": "gst[5]",
+    "std_alt_m": "gst[6]", "east_m": "east", "north_m": "north", "talker": "talker",
+    "status": "f.status", "ept_s": "ept", "leap_seconds": "leap", "gst_rms_m": "gst[0]",
+    "gst_major_m": "gst[1]", "gst_minor_m": "gst[2]", "gst_orient_deg": "gst[3]",
+}  # fmt: skip
+_SHOWN_2D = {
+    "lat_deg": "f.lat", "lon_deg": "f.lon", "alt_msl_m": "f.alt_msl", "speed_mps": "speed",
+    "course_deg": "f.track", "alt_hae_m": "f.alt_hae", "eph_m": "f.eph", "epv_m": "f.epv",
+    "epx_m": "f.epx", "epy_m": "f.epy", "sep_m": "f.sep", "eps_mps": "f.eps",
+    "epd_deg": "f.epd", "magvar_deg": "f.magvar", "magtrack_deg": "f.magtrack",
+    "dgps_age_s": "f.dgps_age", "dgps_station": "f.dgps_station",
+}  # fmt: skip
+_SHOWN_3D = {
+    "geoid_sep_m": "f.geoid_sep", "climb_mps": "f.climb", "epc_mps": "f.epc",
+    "vel_n_mps": "f.vel_n", "vel_e_mps": "f.vel_e", "vel_d_mps": "f.vel_d",
+}  # fmt: skip
+_FIX_PARAMS = "f, stamp, time_utc, quality, sats, dop, gst, east, north, talker, speed, ept, leap"
+_none = dict.fromkeys(_SHOWN_2D | _SHOWN_3D, "None")
+_fix_3d = expression_constructor(GpsFix, _FIX_PARAMS, _SHOWN | _SHOWN_2D | _SHOWN_3D)
+_fix_2d = expression_constructor(
+    GpsFix, _FIX_PARAMS, _SHOWN | _SHOWN_2D | dict.fromkeys(_SHOWN_3D, "None")
+)
+_fix_none = expression_constructor(GpsFix, _FIX_PARAMS, _SHOWN | _none)

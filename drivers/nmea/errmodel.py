@@ -72,6 +72,29 @@ def earth_distance(lat1, lon1, lat2, lon2) -> float | None:
     return WGS84_B * a * (sigma - ds)
 
 
+# the largest radii of curvature of WGS84 (metres): the meridian's, a / sqrt(1 - e^2), at
+# the poles, and the parallel's, N cos(lat) <= a, at the equator
+_M_MAX = 6399593.7
+_PARALLEL_MAX = WGS84_A
+
+
+def _nearer_than(lat1, lon1, lat2, lon2, d: float) -> bool:
+    """Whether two points are surely nearer than ``d`` metres, so that the distance
+    need not be computed to know it is not over ``d``: the geodesic is no longer than
+    the path along the meridian, then along the parallel, and that path no longer than
+    its angles times the largest radii (with a margin far above Vincenty's error)."""
+    if lat1 is None or lon1 is None or lat2 is None or lon2 is None:
+        return False
+    dlon = abs(lon2 - lon1) % 360.0
+    if dlon > 180.0:
+        dlon = 360.0 - dlon
+    return (_M_DEG * abs(lat2 - lat1) + _PARALLEL_DEG * dlon) * 1.001 + 0.01 < d
+
+
+_M_DEG = _M_MAX * math.pi / 180.0  # (metres in a degree, at most)
+_PARALLEL_DEG = _PARALLEL_MAX * math.pi / 180.0
+
+
 def deferred_speed(lat1, lon1, lat2, lon2, dt: float) -> float | None:
     """Speed from the distance between two fixes (gpsd's, when no sentence gave one)."""
     d = earth_distance(lat1, lon1, lat2, lon2)
@@ -102,57 +125,92 @@ def _velocities(fix) -> None:
             fix.track = math.degrees(math.atan2(fix.vel_e, fix.vel_n))
 
 
-def error_model(st: Session, new: dict) -> None:
-    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave)."""
-    fix = st.fix
-    t = fix.time_ns
-    if t:
-        last = st.lastfix
-        dt = (t - (last.time_ns or 0)) * 1e-9
-        if dt > 0.0099 or dt < -0.0099:
-            st.oldfix = last  # time moved on: the last fix is now the previous one
-        else:
-            dt = (t - (st.oldfix.time_ns or 0)) * 1e-9
-    else:
-        dt = -1.0
-    old = st.oldfix
-    lat, lon = fix.lat, fix.lon
-    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-        fix.lat = fix.lon = None
-    # what follows from the fix's own fields: velocities, track, altitudes
-    v = fix.speed
-    if v is not None and abs(v) > _MAX_RATE:  # (False for a deferred speed)
-        fix.speed = None
-    v = fix.climb
-    if v is not None and abs(v) > _MAX_RATE:
-        fix.climb = None
-    if fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
-        _velocities(fix)
+def _tracks(st: Session, fix) -> None:
+    """The true track from the magnetic one and the variation, or the magnetic from the
+    true; each moved into 0-360 degrees by 360 once, as gpsd does (``st._unnormed``: one
+    is still outside, so another run would move it again)."""
     track, magvar, magtrack = fix.track, fix.magvar, fix.magtrack
     if magvar is not None:
         if magtrack is None and track is not None:
             fix.magtrack = magtrack = track + magvar
         elif magtrack is not None and track is None:
             track = magtrack - magvar
+    unnormed = False
     if track is not None and not 0.0 <= track < 360.0:
         track = _norm360(track)
+        unnormed = not 0.0 <= track < 360.0
     fix.track = track
     if magtrack is not None and not 0.0 <= magtrack < 360.0:
-        fix.magtrack = _norm360(magtrack)
+        fix.magtrack = magtrack = _norm360(magtrack)
+        unnormed = unnormed or not 0.0 <= magtrack < 360.0
+    st._unnormed = unnormed
+
+
+def motion_model(st: Session) -> None:
+    """:func:`error_model` after a sentence that changed only the speed, the true or the
+    magnetic track or the variation of a fix, when the model ran on that fix after its
+    other fields last changed, the DOPs are those it saw, no track was left outside
+    0-360 degrees, the fix has no velocities and its speed is known (the caller's
+    conditions): the rest of the model then comes out as it was (the same fix, times,
+    previous fix and DOPs), so what it does is check the speed and the tracks. An
+    insane speed (which the model makes unknown, then deferred) takes the whole model."""
+    fix = st.fix
+    speed = fix.speed
+    if speed is not None and abs(speed) > _MAX_RATE:  # (False for a deferred speed)
+        error_model(st, {})
+        return
+    _tracks(st, fix)
+
+
+def error_model(st: Session, new: dict) -> None:
+    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave). The
+    session keeps the DOPs this run saw (``st._dops``) and whether it left a track outside
+    0-360 degrees (``st._unnormed``: gpsd moves such a track by 360 each run), so that a
+    sentence changing neither the fix nor the DOPs need not run it again."""
+    dop = st.sky.dop
+    st._dops = dict(dop)
+    fix = st.fix
+    t = fix.time_ns
+    old = st.oldfix
+    if t:
+        last = st.lastfix
+        dt = (t - (last.time_ns or 0)) * 1e-9
+        if dt > 0.0099 or dt < -0.0099:
+            st.oldfix = old = last  # time moved on: the last fix is now the previous one
+        else:
+            dt = (t - (old.time_ns or 0)) * 1e-9
+    else:
+        dt = -1.0
+    lat, lon = fix.lat, fix.lon
+    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        fix.lat = fix.lon = lat = lon = None
+    # what follows from the fix's own fields: velocities, track, altitudes
+    speed = fix.speed
+    if speed is not None and abs(speed) > _MAX_RATE:  # (False for a deferred speed)
+        fix.speed = speed = None
+    v = fix.climb
+    if v is not None and abs(v) > _MAX_RATE:
+        fix.climb = None
+    if fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
+        _velocities(fix)
+        speed = fix.speed
+    _tracks(st, fix)
     sep = fix.geoid_sep
     if sep is not None:
-        if fix.alt_msl is None:
-            if fix.alt_hae is not None:
-                fix.alt_msl = fix.alt_hae - sep
+        alt = fix.alt_msl
+        if alt is None:
+            alt = fix.alt_hae
+            if alt is not None:
+                fix.alt_msl = alt - sep
         elif fix.alt_hae is None:
-            fix.alt_hae = fix.alt_msl + sep
+            fix.alt_hae = alt + sep
     # what follows from the previous epoch's fix: speed, climb
     mode = fix.mode
     moved = dt > 0 and mode >= MODE_2D and old.mode >= MODE_2D
     if moved:
-        if fix.speed is None:
+        if speed is None:
             fix.speed = DEFERRED
-            fix.speed_args = (fix.lat, fix.lon, old.lat, old.lon, dt)
+            fix.speed_args = (lat, lon, old.lat, old.lon, dt)
         if (mode >= MODE_3D and old.mode >= MODE_3D and fix.climb is None
                 and fix.alt_hae is not None and old.alt_hae is not None):  # fmt: skip
             fix.climb = _sane((fix.alt_hae - old.alt_hae) / dt)
@@ -164,7 +222,6 @@ def error_model(st: Session, new: dict) -> None:
         return
     # the 95 % estimates: from the DOPs (kept once the fix has them), then from the
     # previous epoch's fix (speed, track and climb errors)
-    dop = st.sky.dop
     if dop:
         h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
         get = dop.get
@@ -179,16 +236,23 @@ def error_model(st: Session, new: dict) -> None:
         if fix.sep is None and (pdop := get("pdop")) is not None:
             fix.sep = pdop * p_uere
     if moved:
-        if old.epx is not None and old.epy is not None and "eps" not in new:
-            a, b = _emax(old.epx, old.epy), _emax(fix.epx, fix.epy)
-            fix.eps = None if a is None or b is None else (a + b) / dt
-        if fix.epd is None:
-            opp = _emax(fix.epx, fix.epy)
-            if opp is not None:
-                adj = st.distance(old.lat, old.lon, fix.lat, fix.lon)
-                if adj is not None and adj > opp:
-                    fix.epd = math.degrees(2 * math.asin(opp / math.hypot(adj, opp)))
-        if fix.epv is not None and old.epv is not None and "epc" not in new:
-            fix.epc = (old.epv + fix.epv) / dt
+        epx, epy = fix.epx, fix.epy
+        # (C's x > y ? x : y, a NaN (None) comparing false)
+        opp = epx if epx is not None and epy is not None and epx > epy else epy
+        a, b = old.epx, old.epy
+        if a is not None and b is not None and "eps" not in new:
+            a = a if a > b else b
+            fix.eps = None if opp is None else (a + opp) / dt
+        if (
+            fix.epd is None
+            and opp is not None
+            and not _nearer_than(old.lat, old.lon, lat, lon, opp)
+        ):
+            adj = st.distance(old.lat, old.lon, lat, lon)
+            if adj is not None and adj > opp:
+                fix.epd = math.degrees(2 * math.asin(opp / math.hypot(adj, opp)))
+        epv = fix.epv
+        if epv is not None and old.epv is not None and "epc" not in new:
+            fix.epc = (old.epv + epv) / dt
     if t:
         st.lastfix = fix  # the fix itself: a later sentence without a time copies it first

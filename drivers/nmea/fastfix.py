@@ -11,21 +11,24 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from drivers.nmea.errmodel import error_model, motion_model
 from drivers.nmea.fastpath import (
     _DATES,
     _NONE,
+    _TIMES,
     HOUR_NS,
     _date,
     _time,
     gsa,
     gst,
+    gsv,
     reference,
     vtg,
     zda,
 )
 from drivers.nmea.fields import _FAA, atoi, fnum, latlon, number
 from drivers.nmea.fields import NUMBERS as nums
-from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX
+from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, gga_fix, rmc_fix
 from drivers.nmea.handlers import _GGA_STATUS, KNOTS_TO_MPS
 from drivers.nmea.session import DAY_NS, ROLLOVER_S
 
@@ -33,6 +36,8 @@ if TYPE_CHECKING:
     from collections.abc import Callable
 
     from drivers.nmea.epoch import EpochCombiner
+    from drivers.nmea.fixstate import Fix
+    from drivers.nmea.session import Session
 
 # GGA quality field -> (quality, gpsd status)
 _QUALITY = {str(q): (q, s) for q, s in _GGA_STATUS.items()}
@@ -51,7 +56,7 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     last_talker = st.last_gga_talker
     if f0 == st.last_gga_time and (not last_talker or last_talker == this_talker):
         return reference(rest, stamp, out, comb, talker, "GGA")  # latched: no fix
-    ns, frac = _time(f0)
+    ns, frac = _TIMES.get(f0) or _time(f0)
     if ns is None:
         return reference(rest, stamp, out, comb, talker, "GGA")
     pos = latlon(f[1], f[2], f[3], f[4])
@@ -74,12 +79,15 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     sky = st.sky
     sky.last_gsv_talker = sky.last_gsa_talker = ""
     lat, lon = pos
-    mode = 2
     f8 = f[8]
-    alt = (nums.get(f8) or number(f8)) if f8 else None
-    if f8 and sats >= 4:
-        mode = MODE_3D
-    sep = (nums.get(f[10]) or number(f[10])) if f[10] else None
+    if f8:
+        alt = nums.get(f8) or number(f8)
+        mode = MODE_3D if sats >= 4 else 2
+    else:
+        alt = None
+        mode = 2
+    f10 = f[10]
+    sep = (nums.get(f10) or number(f10)) if f10 else None
     if sats < 3:
         mode = MODE_NO_FIX
     hdop = nums.get(f[7]) or number(f[7])
@@ -89,62 +97,91 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     if f[12] and f[13]:
         age, station = fnum(f[12]), atoi(f[13])
         if age is None or not (age > 0.09 or station > 0):
-            age = None
+            age = station = None
     fix = st.fix
     if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
         mode = MODE_3D
-    clear = frac is None or last is None or abs(frac - last) > 0.01  # (Session.parse)
+    time_ns = None if st.date is None else st.day * DAY_NS + ns
     # --- EpochCombiner.add_into and Session.apply
-    if clear:
-        comb.new_epoch(out)
-    comb._pending = True
-    comb._snap = None
-    if clear:
-        fix = st.new_cycle(hdop is not None)
-        changed = True
+    if frac is None or last is None or abs(frac - last) > 0.01:  # a new cycle (Session.parse)
+        _new_epoch(comb, out)
+        comb._pending = True
+        comb._snap = None
+        if hdop is None:
+            sky.dop.clear()
+        else:
+            sky.dop["hdop"] = hdop
+        st.fix = gga_fix(time_ns, lat, lon, alt, sep, mode, status, age, station)
+        st.quality, st.gga_sats = quality, sats
+        if sky.used_count != sats:
+            sky.used_count = sats
+            sky.changed = True
+        error_model(st, _NONE)
     else:
+        comb._pending = True
+        comb._snap = None
         changed = False
-    if st.date is not None:
-        time_ns = st.day * DAY_NS + ns
-        if not clear and not time_ns and st.lastfix is fix:
-            st.lastfix = fix.copy()
-        if fix.time_ns != time_ns:
-            fix.time_ns = time_ns
+        if time_ns is not None:
+            if not time_ns and st.lastfix is fix:
+                st.lastfix = fix.copy()
+            if fix.time_ns != time_ns:
+                fix.time_ns = time_ns
+                changed = True
+        if hdop is not None:
+            sky.dop["hdop"] = hdop
+        st.quality, st.gga_sats = quality, sats
+        if sky.used_count != sats:
+            sky.used_count = sats
+            sky.changed = True
+        if fix.lat != lat:
+            fix.lat = lat
             changed = True
-    if hdop is not None:
-        sky.dop["hdop"] = hdop
-    st.quality, st.gga_sats = quality, sats
-    if sky.used_count != sats:
-        sky.used_count = sats
-        sky.changed = True
-    if fix.lat != lat:
-        fix.lat = lat
-        changed = True
-    if fix.lon != lon:
-        fix.lon = lon
-        changed = True
-    if sep is not None and fix.geoid_sep != sep:
-        fix.geoid_sep = sep
-        changed = True
-    if alt is not None and fix.alt_msl != alt:
-        fix.alt_msl = alt
-        changed = True
-    if fix.mode != mode:
-        fix.mode = mode
-        changed = True
-    if fix.status < status:
-        fix.status = status
-        changed = True
-    if age is not None and (fix.dgps_age, fix.dgps_station) != (age, station):
-        fix.dgps_age, fix.dgps_station = age, station
-        changed = True
-    if changed or sky.dop != st._dops or st._unnormed:
-        st.model(_NONE)
+        if fix.lon != lon:
+            fix.lon = lon
+            changed = True
+        if sep is not None and fix.geoid_sep != sep:
+            fix.geoid_sep = sep
+            changed = True
+        if alt is not None and fix.alt_msl != alt:
+            fix.alt_msl = alt
+            changed = True
+        if fix.mode != mode:
+            fix.mode = mode
+            changed = True
+        if fix.status < status:
+            fix.status = status
+            changed = True
+        if age is not None and (fix.dgps_age != age or fix.dgps_station != station):
+            fix.dgps_age, fix.dgps_station = age, station
+            changed = True
+        if changed or sky.dop != st._dops or st._unnormed:
+            error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
     comb._last_timed = "GGA"  # (EpochCombiner.timed)
     if comb._ender == "GGA" and not comb._reported:
         comb._report(out)
+
+
+def _motion(st: Session, fix: Fix, unknown_speed: bool) -> None:
+    """The error model after a change of speed or tracks alone (errmodel.motion_model,
+    when its conditions hold: no velocities, the speed not made unknown)."""
+    if unknown_speed or fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None:
+        error_model(st, _NONE)
+    else:
+        motion_model(st)
+
+
+def _new_epoch(comb: EpochCombiner, out: list) -> None:
+    """EpochCombiner.new_epoch (and _close): the last epoch's fix and sky if not reported."""
+    if comb._pending:
+        comb._report(out)
+    elif comb.session.sky.changed:
+        out.append(comb._sky())
+    comb._last_fix = None
+    comb._ender = comb._last_timed
+    comb._last_timed = None
+    comb._reported = False
 
 
 def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
@@ -157,7 +194,7 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     if (status != "A" and status != "D") or not f0 or not f8:
         return reference(rest, stamp, out, comb, talker, "RMC")
     st = comb.session
-    ns, frac = _time(f0)
+    ns, frac = _TIMES.get(f0) or _time(f0)
     date = _DATES.get(f8) or _date(f8)
     if ns is None or not date:
         return reference(rest, stamp, out, comb, talker, "RMC")
@@ -177,14 +214,16 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     st.this_frac = frac
     st.latch_frac = True
     lat, lon = pos
-    mode = MODE_3D if last_mode == MODE_3D else 2
-    speed_set = bool(f[6])
+    f6 = f[6]
+    speed_set = bool(f6)
+    speed = None
     if speed_set:
-        speed = nums.get(f[6]) or number(f[6])
+        speed = nums.get(f6) or number(f6)
         if speed is not None:
             speed *= KNOTS_TO_MPS
-    track_set = bool(f[7])
-    track = (nums.get(f[7]) or number(f[7])) if track_set else None
+    f7 = f[7]
+    track_set = bool(f7)
+    track = (nums.get(f7) or number(f7)) if track_set else None
     magvar = None
     if f[9] and f[10]:
         var = fnum(f[9])
@@ -193,52 +232,63 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
             magvar = -var if hemi == "W" else var
     newstatus = _FAA.get(f[11][:1], 1) if n > 11 else 0  # (fields.faa_status)
     fix = st.fix
-    if st.sky.used_count > 3 or fix.alt_hae is not None or fix.alt_msl is not None:
-        mode = MODE_3D
     sky = st.sky
+    # 3D: after a 3D fix, with more than 3 satellites or an altitude, or as a 3D fix that
+    # had an altitude (Session.parse: RMC says nothing of 3D)
+    mode = (
+        MODE_3D
+        if last_mode == MODE_3D
+        or sky.used_count > 3
+        or fix.alt_hae is not None
+        or fix.alt_msl is not None
+        or (fix.mode == MODE_3D and st._had_altitude())
+        else 2
+    )
     sky.last_gsv_talker = sky.last_gsa_talker = ""
     time_ns = day * DAY_NS + ns
-    if mode == 2 and fix.mode == MODE_3D and st._had_altitude():
-        mode = MODE_3D
-    clear = frac is None or last is None or abs(frac - last) > 0.01  # (Session.parse)
     # --- EpochCombiner.add_into and Session.apply
-    if clear:
-        comb.new_epoch(out)
-    comb._pending = True
-    comb._snap = None
-    if clear:
-        fix = st.new_cycle(0)
-        changed = True
+    if frac is None or last is None or abs(frac - last) > 0.01:  # a new cycle (Session.parse)
+        _new_epoch(comb, out)
+        comb._pending = True
+        comb._snap = None
+        sky.dop.clear()
+        st.fix = rmc_fix(time_ns, lat, lon, speed, track, magvar, mode, newstatus)
+        st.quality = st.gga_sats = None
+        error_model(st, _NONE)
     else:
-        changed = False
+        comb._pending = True
+        comb._snap = None
+        changed = moved = False  # (moved: the speed, track or variation changed)
         if not time_ns and st.lastfix is fix:
             st.lastfix = fix.copy()
-    if fix.time_ns != time_ns:
-        fix.time_ns = time_ns
-        changed = True
-    if fix.lat != lat:
-        fix.lat = lat
-        changed = True
-    if fix.lon != lon:
-        fix.lon = lon
-        changed = True
-    if speed_set and fix.speed != speed:
-        fix.speed = speed
-        changed = True
-    if track_set and fix.track != track:
-        fix.track = track
-        changed = True
-    if magvar is not None and fix.magvar != magvar:
-        fix.magvar = magvar
-        changed = True
-    if fix.mode != mode:
-        fix.mode = mode
-        changed = True
-    if fix.status < newstatus:
-        fix.status = newstatus
-        changed = True
-    if changed or sky.dop != st._dops or st._unnormed:
-        st.model(_NONE)
+        if fix.time_ns != time_ns:
+            fix.time_ns = time_ns
+            changed = True
+        if fix.lat != lat:
+            fix.lat = lat
+            changed = True
+        if fix.lon != lon:
+            fix.lon = lon
+            changed = True
+        if speed_set and fix.speed != speed:
+            fix.speed = speed
+            moved = True
+        if track_set and fix.track != track:
+            fix.track = track
+            moved = True
+        if magvar is not None and fix.magvar != magvar:
+            fix.magvar = magvar
+            moved = True
+        if fix.mode != mode:
+            fix.mode = mode
+            changed = True
+        if fix.status < newstatus:
+            fix.status = newstatus
+            changed = True
+        if changed or sky.dop != st._dops or st._unnormed:
+            error_model(st, _NONE)
+        elif moved:
+            _motion(st, fix, speed_set and speed is None)
     comb._stamp_ns = stamp
     comb._talker = talker
     comb._last_timed = "RMC"  # (EpochCombiner.timed)
@@ -251,6 +301,7 @@ FAST: dict[str, Callable[..., None]] = {
     "GGA": gga,
     "RMC": rmc,
     "GSA": gsa,
+    "GSV": gsv,
     "VTG": vtg,
     "GST": gst,
     "ZDA": zda,

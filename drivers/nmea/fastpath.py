@@ -31,12 +31,14 @@ from collections.abc import Callable
 from types import FunctionType
 from typing import TYPE_CHECKING
 
+from drivers.nmea.errmodel import error_model, motion_model
 from drivers.nmea.fields import NUMBERS as nums
-from drivers.nmea.fields import _parse_hhmmss, ddmmyy, fnum, number
+from drivers.nmea.fields import clock, ddmmyy, number
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
 from drivers.nmea.handlers import KNOTS_TO_MPS
+from drivers.nmea.memo import table
 from drivers.nmea.session import DAY_NS, ROLLOVER_S, days_from_civil
-from drivers.nmea.sky import _gsa_fields
+from drivers.nmea.sky import _gsa_fields, _gsv_fields
 
 if TYPE_CHECKING:
     from drivers.nmea.epoch import EpochCombiner
@@ -44,22 +46,23 @@ if TYPE_CHECKING:
 HOUR_NS = 3_600_000_000_000
 _NONE: dict = {}  # the new data the error model sees: none of the estimates it keeps
 _CACHE_MAX = 64
-_TIMES: dict[str, tuple[int | None, float | None]] = {}
-_DATES: dict[str, tuple] = {}
+_TIMES: dict[str, tuple[int | None, float | None]] = table({})
+_DATES: dict[str, tuple] = table({})
 # a GST's and a ZDA's fields after the time -> what they say (_gst_stats, _zda_date)
-_GST: dict[str, tuple] = {}
-_ZDA: dict[str, tuple] = {}
+_GST: dict[str, tuple] = table({})
+_ZDA: dict[str, tuple] = table({})
 # (talker, a GSA's fields text) -> what it says (sky._gsa_fields; () when too short)
-_GSA: dict[tuple[str, str], tuple] = {}
+_GSA: dict[tuple[str, str], tuple] = table({})
+# (talker, a GSV's fields text) -> what it says (sky._gsv_fields)
+_GSV: dict[tuple[str, str], tuple] = table({})
 
 
 def _time(s: str) -> tuple[int | None, float | None]:
-    """(time of day in ns, the field as a number): what the cycle detector registers."""
-    t = _TIMES.get(s)
-    if t is None:
-        if len(_TIMES) >= _CACHE_MAX:
-            _TIMES.clear()
-        t = _TIMES[s] = (_parse_hhmmss(s), fnum(s))  # (hhmmss_ns, without its own table)
+    """(time of day in ns, the field as a number): what the cycle detector registers
+    (readers look in ``_TIMES`` first: ``_TIMES.get(s) or _time(s)``)."""
+    if len(_TIMES) >= _CACHE_MAX:
+        _TIMES.clear()
+    t = _TIMES[s] = clock(s)
     return t
 
 
@@ -103,13 +106,12 @@ def gsa(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     # --- the ordinary GSA from here on (Session.parse, Sky.gsa)
     st.latch_frac = st.gsx_more = False
     sky = st.sky
-    new: dict = {}
-    mask = sky.gsa_read(talker, read, new)
+    mask = sky.gsa_read(talker, read)
     sky.last_gsv_talker = ""
     fix = st.fix
     changed = False
     if mask & MODE_SET:  # (it is all of GSA's that makes an epoch worth a fix)
-        mode = new.get("mode", 0)
+        mode = read[0]
         if mode != MODE_NO_FIX and mode != MODE_3D and fix.mode == MODE_3D and st._had_altitude():
             mode = MODE_3D
         comb._pending = True
@@ -117,10 +119,35 @@ def gsa(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         if fix.mode != mode:
             fix.mode = mode
             changed = True
-    elif comb._pending and comb._snap is None and new:
+    elif comb._pending and comb._snap is None:  # (the new data: the mode)
         comb._snap = fix.copy()
     if changed or sky.dop != st._dops or st._unnormed:
-        st.model(_NONE)
+        error_model(st, _NONE)
+    comb._stamp_ns = stamp
+
+
+def gsv(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
+    """Every GSV (Session.parse and apply, Sky.gsv, EpochCombiner.add_into): a GSV sets
+    no fix data; a complete set computes the DOPs the receiver did not give."""
+    key = (talker, rest)
+    read = _GSV.get(key)
+    if read is None:
+        read = _gsv_fields(talker, rest.split(","))
+        if len(_GSV) >= _CACHE_MAX:
+            _GSV.clear()
+        _GSV[key] = read
+    st = comb.session
+    st.latch_frac = False
+    sky = st.sky
+    mask, st.gsx_more = sky.gsv_read(talker, read)
+    sky.last_gsa_talker = ""
+    if mask:  # (SATELLITE_SET: the fix as last reported is kept for the report)
+        if comb._pending and comb._snap is None:
+            comb._snap = st.fix.copy()
+        if sky.view:
+            sky.fill_dop()
+    if sky.dop != st._dops or st._unnormed:
+        error_model(st, _NONE)
     comb._stamp_ns = stamp
 
 
@@ -153,8 +180,15 @@ def vtg(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     if fix.speed != speed:
         fix.speed = speed
         changed = True
-    if changed or st._unnormed:
-        st.model(_NONE)
+    if st._unnormed or (
+        changed
+        and (
+            speed is None or fix.vel_n is not None or fix.vel_e is not None or fix.vel_d is not None
+        )
+    ):
+        error_model(st, _NONE)
+    elif changed:  # (the speed and tracks alone: errmodel.motion_model's conditions hold)
+        motion_model(st)
     comb._stamp_ns = stamp
     comb._talker = talker
 
@@ -171,9 +205,9 @@ def gst(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     sky = st.sky
     sky.last_gsv_talker = sky.last_gsa_talker = ""
     st.gst = stats
-    st.gst_tod = _time(f0)[0]
+    st.gst_tod = (_TIMES.get(f0) or _time(f0))[0]
     if st._unnormed:
-        st.model(_NONE)
+        error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
 
@@ -181,7 +215,15 @@ def gst(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
 def _gst_stats(tail: str) -> tuple:
     """The 7 numbers of a GST after its time (handlers.gst), () if it has fewer."""
     f = tail.split(",")
-    stats = tuple(map(number, f[:7])) if len(f) >= 7 else ()
+    if len(f) >= 7:
+        a, b, c, d, e, g, h = f[:7]
+        get = nums.get  # (number(), the empty fields and the table looked at first)
+        stats = ((get(a) or number(a)) if a else None, (get(b) or number(b)) if b else None,
+                 (get(c) or number(c)) if c else None, (get(d) or number(d)) if d else None,
+                 (get(e) or number(e)) if e else None, (get(g) or number(g)) if g else None,
+                 (get(h) or number(h)) if h else None)  # fmt: skip
+    else:
+        stats = ()
     if len(_GST) >= _CACHE_MAX:
         _GST.clear()
     _GST[tail] = stats
@@ -193,7 +235,7 @@ def zda(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     date = _ZDA.get(tail)
     if date is None:
         date = _zda_date(tail)
-    ns = _time(f0)[0]
+    ns = (_TIMES.get(f0) or _time(f0))[0]
     if not date or ns is None:
         return reference(rest, stamp, out, comb, talker, "ZDA")
     # --- the ordinary ZDA from here on (Session.parse, handlers.zda, Session.set_date)
@@ -218,7 +260,7 @@ def zda(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         fix.time_ns = time_ns
         changed = True
     if changed or st._unnormed:
-        st.model(_NONE)
+        error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
     comb._last_timed = "ZDA"  # (EpochCombiner.timed)

@@ -19,6 +19,8 @@ from __future__ import annotations
 import math
 import re
 
+from drivers.nmea.memo import table
+
 _NUMBER = re.compile(r"\s*([-+]?)(\d*)(?:\.(\d*))?(?:[eE]([-+]?\d+))?")
 _INT = re.compile(r"\s*([-+]?\d+)")
 _START = frozenset("0123456789-+.")
@@ -41,7 +43,7 @@ def fnum(s: str) -> float | None:
     return v
 
 
-NUMBERS: dict[str, float | None] = {}  # field -> fnum(field), for number()
+NUMBERS: dict[str, float | None] = table({})  # field -> fnum(field), for number()
 
 
 def number(s: str) -> float | None:
@@ -90,7 +92,7 @@ def atoi(s: str) -> int:
     return int(m.group(1)) if m else 0
 
 
-_HHMMSS: dict[str, int | None] = {}
+_HHMMSS: dict[str, int | None] = table({})
 
 
 def hhmmss_ns(s: str) -> int | None:
@@ -106,6 +108,36 @@ def hhmmss_ns(s: str) -> int | None:
 
 
 def _parse_hhmmss(s: str) -> int | None:
+    """:func:`hhmmss_ns` without its table: the hours and minutes, the seconds and what
+    follows each looked up (an ordinary field is three look-ups), else
+    :func:`_hhmmss_read`."""
+    hhmm = _HHMM.get(s[:4])
+    if hhmm is not None:
+        sec = _SS.get(s[4:6])
+        if sec is not None:
+            tail = s[6:]
+            return hhmm[0] + sec[0] + (_TAIL.get(tail) or _tail(tail))[0]
+    return _hhmmss_read(s)
+
+
+def clock(s: str) -> tuple[int | None, float | None]:
+    """``(hhmmss_ns(s), fnum(s))``: a time field as a time of day and as a number (what
+    gpsd compares to tell a new cycle), from the same look-ups. The number of an ordinary
+    field, ``hhmmss.fff``, is its digits over a power of ten: an exact integer division,
+    correctly rounded as float() rounds the text."""
+    hhmm = _HHMM.get(s[:4])
+    if hhmm is not None:
+        sec = _SS.get(s[4:6])
+        if sec is not None:
+            tail = s[6:]
+            ns, scale, digits = _TAIL.get(tail) or _tail(tail)
+            if scale:
+                return hhmm[0] + sec[0] + ns, ((hhmm[1] + sec[1]) * scale + digits) / scale
+            return hhmm[0] + sec[0] + ns, fnum(s)
+    return _hhmmss_read(s), fnum(s)
+
+
+def _hhmmss_read(s: str) -> int | None:
     head = s[:6]
     if len(head) < 6 or not (head.isdigit() and head.isascii()):
         return None
@@ -113,19 +145,42 @@ def _parse_hhmmss(s: str) -> int | None:
     m, sec = divmod(rest, 100)
     if h > 23 or m > 59 or sec > 60:
         return None
+    return ((h * 60 + m) * 60 + sec) * 1_000_000_000 + _tail(s[6:])[0]
+
+
+def _tail(tail: str) -> tuple[int, int, int]:
+    """What follows ``hhmmss``: (its ns: those of a fraction ``.fff``, 0 for anything
+    else; and for a plain fraction, or nothing, 10 ** its digits and their value, else
+    0, 0)."""
     ns = 0
-    if s[6:7] == "." and s[7:8].isdigit():
-        digits = s[7:]
+    if tail[:1] == "." and tail[1:2].isdigit():
+        digits = tail[1:]
         if len(digits) <= 9:
             if digits.isdigit() and digits.isascii():
                 ns = int(digits) * _POW10[9 - len(digits)]
             else:
                 lead = _INT.match(digits)
                 ns = int(lead.group(1)) * _POW10[9 - len(digits)] if lead else 0
-    return ((h * 60 + m) * 60 + sec) * 1_000_000_000 + ns
+    digits = tail[1:]
+    if tail in ("", "."):
+        read = (ns, 1, 0)
+    elif tail[0] == "." and digits.isdigit() and digits.isascii() and len(digits) < 20:
+        read = (ns, _POW10[len(digits)], int(digits))
+    else:
+        read = (ns, 0, 0)
+    if len(_TAIL) >= _CACHE_MAX:
+        _TAIL.clear()
+    _TAIL[tail] = read
+    return read
 
 
-_POW10 = tuple(10**k for k in range(10))
+# "hhmm" of every valid hour and minute -> (ns since midnight, hhmm00 as a number);
+# "ss" (00-60) -> (ns, ss); what follows hhmmss -> _tail(...)
+_HHMM = {f"{h:02d}{m:02d}": ((h * 60 + m) * 60_000_000_000, (h * 100 + m) * 100)
+         for h in range(24) for m in range(60)}  # fmt: skip
+_SS = {f"{sec:02d}": (sec * 1_000_000_000, sec) for sec in range(61)}
+_TAIL: dict[str, tuple[int, int, int]] = table({})
+_POW10 = tuple(10**k for k in range(130))
 
 
 def ddmmyy(s: str) -> tuple[int, int, int] | None:
@@ -139,13 +194,31 @@ def ddmmyy(s: str) -> tuple[int, int, int] | None:
 
 
 def _degrees(field: str) -> float | None:
-    """gpsd's decode_lat_or_lon: ``DDDMM.mmm`` -> degrees (no sign), None if malformed."""
+    """gpsd's decode_lat_or_lon: ``DDDMM.mmm`` -> degrees (no sign), None if malformed.
+    The whole minutes of the usual field are looked up (they hold from fix to fix): its
+    degrees times 60 plus minutes, to which the fraction is added once (gpsd's sum)."""
+    dot = field.find(".")
+    if dot > 0:
+        minutes = _MINUTES.get(field[:dot])
+        if minutes is not None:
+            frac = field[dot + 1 :]
+            if frac.isdigit() and frac.isascii() and len(frac) < 100:
+                # (float(".fff"): the exact quotient, correctly rounded as float() rounds)
+                return (minutes + int(frac) / _POW10[len(frac)]) * (1.0 / 60.0)
+    return _degrees_read(field)
+
+
+def _degrees_read(field: str) -> float | None:
     whole, dot, frac = field.partition(".")
     if not dot:
         return None
     if whole.isdigit() and frac.isdigit() and field.isascii():  # the usual field
         minutes = int(whole)
-        return (minutes - minutes // 100 * 40 + float(field[len(whole) :])) * (1.0 / 60.0)
+        minutes -= minutes // 100 * 40
+        if len(_MINUTES) >= _CACHE_MAX:
+            _MINUTES.clear()
+        _MINUTES[whole] = minutes
+        return (minutes + float(field[len(whole) :])) * (1.0 / 60.0)
     m = _INT.match(whole)
     if m is None or m.end() != len(whole):
         if whole:
@@ -161,7 +234,10 @@ def _degrees(field: str) -> float | None:
     return (minutes + f) * (1.0 / 60.0)
 
 
-_LATLON: dict[tuple[str, str, str, str], tuple[float, float] | None] = {}
+_MINUTES: dict[str, int] = table({})  # a position field's whole minutes (digits) -> deg * 60 + min
+
+
+_LATLON: dict[tuple[str, str, str, str], tuple[float, float] | None] = table({})
 _NOT_READ = object()
 
 

@@ -89,6 +89,30 @@ def _copier() -> Callable[[Fix], Fix]:
 _copy = _copier()
 
 
+def _fresh(*given: str) -> Callable[..., Fix]:
+    """A function ``f(*given)``: a new fix (as ``Fix()``) with the fields ``given`` set to
+    its arguments (written out: one slot write per field)."""
+    body = "".join(
+        f"    f.{name} = {name if name in given else 'None'}\n"
+        for name in FIELDS
+        if name not in ("mode", "status") or name in given
+    )
+    if "mode" not in given:
+        body += "    f.mode = MODE_NOT_SEEN\n"
+    if "status" not in given:
+        body += "    f.status = STATUS_UNK\n"
+    env: dict[str, Any] = {"_new": object.__new__, "Fix": Fix, "MODE_NOT_SEEN": MODE_NOT_SEEN,
+                           "STATUS_UNK": STATUS_UNK}  # fmt: skip
+    exec(f"def fresh({', '.join(given)}):\n    f = _new(Fix)\n{body}    return f\n", env)
+    return env["fresh"]
+
+
+# the fix a new cycle starts with, as a GGA or an RMC leaves it (Fix() and their merge)
+gga_fix = _fresh("time_ns", "lat", "lon", "alt_msl", "geoid_sep", "mode", "status",
+                 "dgps_age", "dgps_station")  # fmt: skip
+rmc_fix = _fresh("time_ns", "lat", "lon", "speed", "track", "magvar", "mode", "status")
+
+
 # new-data key -> the mask bit it needs (0: copied whenever given). Every handler gives a
 # key only with its bit set (tests/test_nmea_gpsd.py checks it), so merge() copies the keys
 # without looking at the bits; the table documents the rule and is what the test checks.

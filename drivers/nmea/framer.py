@@ -24,6 +24,7 @@ from functools import partial
 import numpy as np
 
 from drivers.base import CodecStats
+from drivers.nmea.memo import table
 from drivers.nmea.sentences import Sentence
 
 _HEX = frozenset(b"0123456789ABCDEFabcdef")
@@ -46,7 +47,7 @@ for _i, _c in enumerate(b"abcdef"):
 # address still to be checked), a wrong checksum, anything else (the per-line path)
 GOOD, BAD_SUM, OTHER = 0, 1, 2
 _ADDRESS_CACHE = 256
-_ADDRESSES: dict[str, tuple[str, str] | tuple[()]] = {}
+_ADDRESSES: dict[str, tuple[str, str] | tuple[()]] = table({})
 
 
 def _address(address: str) -> tuple[str, str] | tuple[()]:
@@ -76,41 +77,78 @@ def _prefix_xor(data: bytes) -> bytes:
     return bytes(out)
 
 
-def _classify(region: bytes, max_line: int) -> tuple[list[int], ...]:
+def _classify(region: bytes, max_line: int) -> tuple[np.ndarray, ...]:
     """Every line of a run of complete ASCII lines, checked at once with numpy: (starts,
-    ends without a CR, verdicts). A GOOD line is ``$...*HH`` of printable bytes, one
-    ``$``, no longer than ``max_line``, the XOR of the bytes between ``$`` and ``*`` equal
-    to HH; BAD_SUM fails only the XOR; OTHER is anything else (the per-line path). The
-    address (up to the first comma) is checked by the caller."""
+    ends without a CR, verdicts, address lengths, keys). A GOOD line is ``$...*HH`` of
+    printable bytes, one ``$``, no longer than ``max_line``, the XOR of the bytes between
+    ``$`` and ``*`` equal to HH; BAD_SUM fails only the XOR; OTHER is anything else (the
+    per-line path). The address (up to the first comma) is checked by the caller: of a
+    line whose first comma is one of the 8 bytes after the ``$`` (and before the ``*``),
+    the address's length and :func:`_key`, else -1 for both. (A run of at least 8 bytes:
+    the framer checks runs from 512 bytes on this way.)"""
     a = np.frombuffer(region, dtype=np.uint8)
+    size = len(a)
     nl = np.flatnonzero(a == 10)
-    starts = np.concatenate(([0], nl + 1))
-    ends = np.concatenate((nl, [len(a)]))
-    last = np.maximum(ends - 1, 0)
-    ends = ends - ((ends > starts) & (a[last] == 13))  # a CR ends the line, not part of it
+    starts = np.empty(len(nl) + 1, dtype=np.intp)
+    starts[0] = 0
+    starts[1:] = nl + 1
+    ends = np.empty(len(nl) + 1, dtype=np.intp)
+    ends[:-1] = nl
+    ends[-1] = size
+    ends -= (ends > starts) & (a[ends - 1] == 13)  # a CR ends the line, not part of it
     n = ends - starts
     ok = (n >= 5) & (n <= max_line)  # "$" + address + "*HH"
-    s, e = starts[ok], ends[ok]
-    ok[ok] = (a[s] == 36) & (a[e - 3] == 42)  # "$" ... "*"
-    # one "$" per line and no byte that is not printable: counted between their positions
-    dollars = np.flatnonzero(a == 36)
-    odd = np.flatnonzero(a - np.uint8(32) > 94)  # below 32 or above 126 (uint8 wraps)
-    ok &= dollars.searchsorted(ends) - dollars.searchsorted(starts) == 1
-    ok &= odd.searchsorted(ends) == odd.searchsorted(starts)
-    s, e = starts[ok], ends[ok]
-    hi, lo = _HEXVAL[a[e - 2]], _HEXVAL[a[e - 1]]
-    hexed = (hi >= 0) & (lo >= 0)
-    ok[ok] = hexed
-    verdict = np.where(ok, GOOD, OTHER)
-    good = np.flatnonzero(ok)
-    if len(good):
-        s, e, hi, lo = s[hexed], e[hexed], hi[hexed], lo[hexed]
-        bounds = np.empty(2 * len(s), dtype=np.intp)
-        bounds[0::2] = s + 1
-        bounds[1::2] = e - 3
-        xor = np.bitwise_xor.reduceat(a, bounds)[0::2]  # of the bytes between "$" and "*"
-        verdict[good] = np.where(xor != hi * 16 + lo, BAD_SUM, GOOD)
-    return starts.tolist(), ends.tolist(), verdict.tolist()
+    star = np.where(ok, ends - 3, 0)
+    ok &= (a[starts * ok] == 36) & (a[star] == 42)  # "$" ... "*"
+    # no "$" but the first and no byte that is not printable: the count of such bytes
+    # from a line's start to the next's, less its end (CR, LF), is 1
+    odd = ((a - np.uint8(32) > 94) | (a == 36)).view(np.uint8)  # (uint8 wraps below 32)
+    first = np.minimum(starts, size - 1)
+    after = np.empty_like(first)
+    after[:-1] = first[1:]
+    after[-1] = size
+    ok &= np.add.reduceat(odd, first, dtype=np.intp) - (after - ends) == 1
+    hi, lo = _HEXVAL[a[star + 1]], _HEXVAL[a[np.minimum(star + 2, size - 1)]]
+    ok &= (hi >= 0) & (lo >= 0)
+    bounds = np.empty(2 * len(starts), dtype=np.intp)
+    bounds[0::2] = np.where(ok, starts + 1, 0)
+    bounds[1::2] = np.where(ok, star, 1)
+    xor = np.bitwise_xor.reduceat(a, bounds)[0::2]  # of the bytes between "$" and "*"
+    verdict = np.where(ok, np.where(xor != hi * 16 + lo, BAD_SUM, GOOD), OTHER)
+    # where the first comma is (of the usual address of 5 characters, 6 bytes after the
+    # "$", none before; else one of the 8 bytes after the "$"), and the address's key
+    # from the 8 bytes after the "$"
+    words = np.ndarray((size - 7,), "<u8", region, 0, (1,))  # the 8 bytes from each
+    word = words[np.minimum(starts + 1, size - 8)]
+    x = word ^ _COMMAS5  # (a zero byte for each comma among the first 6)
+    no_comma = ((x - _ONES5) & ~x & _HIGH5) == 0  # (exact: whether a byte of 5 is zero)
+    usual = ((word >> _BITS40) & _BYTE == 44) & no_comma & (n > 9) & (starts + 9 <= size)
+    length = np.full(len(starts), 5)
+    if not usual.all():
+        other = np.flatnonzero(~usual)
+        window = a[np.minimum(starts[other, None] + _AFTER, size - 1)]
+        commas = window == 44
+        first = commas.argmax(axis=1)
+        found = commas.any(axis=1) & (first < n[other] - 4) & (first > 0)
+        length[other] = np.where(found & (starts[other] + 9 <= size), first, -1)
+    keys = (word & _MASK[length]) | (length.astype(np.uint64) << _BITS56)
+    return starts, ends, verdict, length, np.where(length > 0, keys.astype(np.int64), -1)
+
+
+_COMMAS5 = np.uint64(0x2C2C2C2C2C)
+_ONES5 = np.uint64(0x0101010101)
+_HIGH5 = np.uint64(0x8080808080)
+_BYTE = np.uint64(0xFF)
+_BITS40 = np.uint64(40)
+_AFTER = np.arange(1, 9)
+_MASK = np.array([(1 << (8 * k)) - 1 for k in range(8)], dtype=np.uint64)
+_BITS56 = np.uint64(56)
+
+
+def _key(address: str) -> int:
+    """An address of 1 to 7 characters as one integer (its bytes and its length), so that
+    a run's addresses are looked up without being cut out of the text first."""
+    return int.from_bytes(address.encode("ascii"), "little") | len(address) << 56
 
 
 # A route takes one sentence's fields text to what reads it: route(rest, stamp_ns, out).
@@ -167,17 +205,34 @@ class NmeaFramer:
         ``routes[address](rest, stamp_ns, out)``; an address not in ``routes`` yet gets
         ``new_route(talker, type)`` (False there marks an address that is none)."""
         buf = self._buf
-        buf += data
-        end = buf.rfind(b"\n")
+        if buf:
+            buf += data
+            end = buf.rfind(b"\n")
+            region = bytes(buf[:end]) if end >= 0 else b""
+            if end >= 0:
+                del buf[: end + 1]
+        else:  # (nothing pending: the lines are cut out of data itself, two copies less)
+            end = data.rfind(b"\n")
+            region = data[:end] if end >= 0 else b""
+            buf += data[end + 1 :]
         if end >= 0:
-            region = bytes(buf[:end])
-            del buf[: end + 1]
             if region.isascii():
                 if len(region) >= _NUMPY_FROM:
-                    verdicts = _classify(region, self.max_line)
+                    starts, ends, verdicts, lengths, keys = _classify(region, self.max_line)
+                    if not verdicts.any() and lengths.min() > 0:  # (the usual run: all GOOD)
+                        self._route_keyed(
+                            region.decode("ascii"), (starts + lengths + 2).tolist(),
+                            (ends - 3).tolist(), keys.tolist(), routes, new_route, stamp_ns, out,
+                        )  # fmt: skip
+                    else:
+                        self._route(
+                            region, starts.tolist(), ends.tolist(), verdicts.tolist(), routes,
+                            new_route, stamp_ns, out,
+                        )  # fmt: skip
                 else:
-                    verdicts = self._classify_small(region)
-                self._route(region, *verdicts, routes, new_route, stamp_ns, out)
+                    self._route(
+                        region, *self._classify_small(region), routes, new_route, stamp_ns, out
+                    )
             else:
                 for line in region.split(b"\n"):
                     parts = self._line(line)
@@ -229,6 +284,38 @@ class NmeaFramer:
             else:
                 verdicts.append(GOOD)
         return starts, ends, verdicts
+
+    def _route_keyed(
+        self,
+        text: str,
+        rests: list,
+        ends: list,
+        keys: list,
+        routes: dict,
+        new_route: Callable,
+        stamp_ns: int,
+        out: list,
+    ) -> None:
+        """A run of good sentences to their routes, each looked up by its address's key
+        (the route of an address is kept under its key too); ``text[rests[i]:ends[i]]``
+        is a sentence's fields."""
+        skipped = bad = 0
+        for r, e, key in zip(rests, ends, keys, strict=True):
+            try:
+                route = routes[key]
+            except KeyError:
+                address = text[r - 1 - (key >> 56) : r - 1]
+                route = routes.get(address)
+                if route is None:
+                    route = _routed(address, routes, new_route)
+                routes[key] = route
+            if route:
+                route(text[r:e], stamp_ns, out)
+            else:
+                skipped += e + 3 - (r - 2 - (key >> 56))
+                bad += 1
+        self.stats.frames_ok += len(keys) - bad
+        self.stats.bytes_skipped += skipped
 
     def _route(
         self,

@@ -36,6 +36,7 @@ from drivers.nmea.fixstate import (
     Fix,
     merge,
 )
+from drivers.nmea.memo import on_clear
 from drivers.nmea.sky import Sky
 
 ROLLOVER_S = 1024 * 7 * 86400
@@ -86,6 +87,9 @@ def days_from_civil(y: int, m: int, d: int) -> int:
     doy = (153 * (m + (-3 if m > 2 else 9)) + 2) // 5
     doe = yoe * 365 + yoe // 4 - yoe // 100 + doy
     return era * 146097 + doe - 719468 + d - 1
+
+
+on_clear(days_from_civil.cache_clear)
 
 
 class Session:
@@ -240,15 +244,10 @@ class Session:
         return fix
 
     def model(self, new: dict) -> None:
-        """The error model on the merged fix (``new``: what the sentence gave)."""
-        self._dops = dict(self.sky.dop)
+        """The error model on the merged fix (``new``: what the sentence gave); it keeps
+        the DOPs it saw and whether a track is left outside 0-360 degrees (gpsd's error
+        model moves such a track by 360 each run, so it is not the same after another)."""
         error_model(self, new)
-        # a track outside 0-360 degrees: gpsd's error model moves it by 360 each run (so
-        # it is not the same after another run)
-        t, m = self.fix.track, self.fix.magtrack
-        self._unnormed = (t is not None and not 0.0 <= t < 360.0) or (
-            m is not None and not 0.0 <= m < 360.0
-        )
 
     def _had_altitude(self) -> bool:
         last, old = self.lastfix, self.oldfix

@@ -14,8 +14,11 @@ from __future__ import annotations
 
 import math
 
-from drivers.nmea.fields import atoi, fnum
+from drivers.nmea.fields import atoi, number
 from drivers.nmea.fixstate import DOP_SET, MODE_SET, SATELLITE_SET, USED_IS
+from drivers.nmea.memo import table
+from msgs import GpsSatellite
+from msgs.construct import positional_constructor
 
 MAXCHANNELS = 130
 # talker letter -> NMEA 4.10 GNSS id (GSA/GSV of one constellation)
@@ -82,49 +85,90 @@ def nmea_prn(talker: str, num: int, gnss: int = 0) -> tuple[int, int, int]:
     return 0, 0, 0
 
 
-_GSA_CACHE: dict[tuple[str, tuple[str, ...]], tuple] = {}
+# the 1- to 3-digit numbers (zero-padded too) -> their value: what atoi reads of them
+_INTS = {f"{i:0{w}d}": i for w in (1, 2, 3) for i in range(10**w)}
 
 
-def _gsa_fields(talker: str, f: tuple[str, ...]) -> tuple[int, bool, dict, tuple[int, ...]]:
+def _gsa_fields(
+    talker: str, f: tuple[str, ...] | list[str]
+) -> tuple[int, bool, dict, tuple[int, ...]]:
     """What a GSA says, without the session: (mode, whether it sets the mode, its DOPs,
-    the PRNs used). A receiver repeats its GSA from epoch to epoch: the last ones are kept.
-    gpsd reads count - 6 PRN fields, so a NMEA 4.10 GSA (with a system id) reads its PDOP
-    field as one more PRN; so does this."""
-    key = (talker, f)
-    hit = _GSA_CACHE.get(key)
-    if hit is not None:
-        return hit
+    the PRNs used). gpsd reads count - 6 PRN fields, so a NMEA 4.10 GSA (with a system
+    id) reads its PDOP field as one more PRN; so does this."""
     count = len(f) + 1
     dops = {}
     if count <= 19:
         for i, name in ((14, "pdop"), (15, "hdop"), (16, "vdop")):
-            v = fnum(f[i])
+            v = number(f[i])
             if v is not None and v < 99.0:
                 dops[name] = v
     gnss = _TALKER_GNSS.get(talker[1:2], 0)
     prns = []
-    for i in range(count - 6):
-        num = atoi(f[i + 2])
+    for i in range(2, count - 4):
+        num = _INTS.get(f[i])
+        if num is None:
+            num = atoi(f[i])
         if num >= 1:
             prn = nmea_prn(talker, num, gnss)[0]
             if prn > 0:
                 prns.append(prn)
-    out = (atoi(f[1]), f[1][:1] != "E", dops, tuple(prns))
-    if len(_GSA_CACHE) >= 64:
-        _GSA_CACHE.clear()
-    _GSA_CACHE[key] = out
-    return out
+    return (atoi(f[1]), f[1][:1] != "E", dops, tuple(prns))
 
 
-class Satellite:
-    """One satellite of the skyview (gpsd's satellite_t)."""
+# A satellite in the view is the message itself (immutable, so one object serves every
+# epoch that repeats its fields): GpsSatellite(prn, gnss_id, sv_id, el, az, ss, used).
+_satellite = positional_constructor(GpsSatellite)
+_SATS: dict[tuple, tuple] = table({})  # (talker, gnss, its four fields) -> _sat_entry(...)
+_WHOLES = {k: float(v) for k, v in _INTS.items()} | {"": None}  # ... and _whole
 
-    __slots__ = ("prn", "gnss_id", "sv_id", "elevation", "azimuth", "ss", "used")
 
-    def __init__(self, prn: int, gnss_id: int, sv_id: int, el, az, ss) -> None:
-        self.prn, self.gnss_id, self.sv_id = prn, gnss_id, sv_id
-        self.elevation, self.azimuth, self.ss = el, az, ss
-        self.used = False
+def _sat_entry(talker: str, gnss: int, num: int, f: tuple[str, ...] | list[str], k: int) -> tuple:
+    """One GSV satellite (``f[k:k+3]`` its elevation, azimuth and signal to noise):
+    (PRN, whether a GSA may mark it used, the satellite not used, the satellite used, its
+    (azimuth, elevation) if fill_dop may use them, else None)."""
+    prn, ubx, sv = nmea_prn(talker, num, gnss)
+    el, az, ss = _whole(f, k), _whole(f, k + 1), _whole(f, k + 2)
+    usable = prn > 0 and ss is not None and ss > 0
+    seen = az is not None and 0 <= az <= 359 and el is not None and abs(el) <= 90
+    return (prn, usable, _satellite(prn, ubx, sv, el, az, ss, False),
+            _satellite(prn, ubx, sv, el, az, ss, True), (az, el) if seen else None)  # fmt: skip
+
+
+def _gsv_fields(talker: str, f: tuple[str, ...] | list[str]) -> tuple:
+    """What a GSV says, without the session: () when it has a count of fields gpsd
+    refuses, else (signal id, parts, this part, satellites): one entry per satellite
+    field gpsd reads, None for a PRN of 0 (which skips one field only), else
+    :func:`_sat_entry`'s. The GNSS id of the talker applies to the first part only (as
+    in gpsd). A receiver repeats its satellites: the last ones read are kept."""
+    count = len(f) + 1
+    if count <= 3 or count % 4 not in (0, 1):
+        return ()
+    sigid = atoi(f[-1]) if count % 4 == 1 else 0
+    part = _INTS.get(f[1])
+    if part is None:
+        part = atoi(f[1])
+    gnss = _TALKER_GNSS.get(talker[1:2], 0) if part == 1 else 0
+    sats: list = []
+    end = count // 4 * 4 - 1
+    k = 3
+    while k < end and part >= 1:
+        field = f[k]
+        num = _INTS.get(field)
+        if num is None:
+            num = atoi(field)
+        k += 1
+        if num == 0:
+            sats.append(None)
+            continue
+        key = (talker, gnss, field, *f[k : k + 3])
+        sat = _SATS.get(key)
+        if sat is None:
+            if len(_SATS) >= 512:
+                _SATS.clear()
+            sat = _SATS[key] = _sat_entry(talker, gnss, num, f, k)
+        sats.append(sat)
+        k += 3
+    return (sigid, atoi(f[0]), part, tuple(sats))
 
 
 class Sky:
@@ -133,7 +177,10 @@ class Sky:
     def __init__(self) -> None:
         self.used_prns: tuple[int, ...] = ()
         self.used_count = 0  # satellites used: GSA's list, or GGA's count when it came later
-        self.view: list[Satellite] = []
+        self.view: list[GpsSatellite] = []
+        # (azimuth, elevation) of the satellites used in the view whose direction is known,
+        # in its order: what fill_dop computes the DOPs of
+        self.geometry: list[tuple[float, float]] = []
         self.dop: dict[str, float] = {}  # xdop ydop hdop vdop pdop tdop gdop
         self.last_gsa_talker = ""
         self.last_gsv_talker = ""
@@ -147,27 +194,25 @@ class Sky:
     def gsa(self, talker: str, f: tuple[str, ...], new: dict, latch_mode: bool) -> int:
         """One GSA: mode, DOPs, satellites used. ``f`` excludes the address field."""
         read = _gsa_fields(talker, f) if len(f) + 1 >= 18 and not latch_mode else None
-        return self.gsa_read(talker, read, new)
+        if read is not None:
+            new["mode"] = read[0]
+        return self.gsa_read(talker, read)
 
-    def gsa_read(self, talker: str, read: tuple | None, new: dict) -> int:
+    def gsa_read(self, talker: str, read: tuple | None) -> int:
         """One GSA of what :func:`_gsa_fields` read (None: too short, or after a latched
-        GGA; its talker still counts)."""
+        GGA; its talker still counts); the mode it gives is ``read[0]``."""
         t = talker[1:2]
         last_last = self.last_gsa_talker
         mask = 0
         if read is not None:
             mode, mode_set, dops, prns = read
-            new["mode"] = mode
             if mode_set:
                 mask = MODE_SET
             prev_used, prev_count = self.used_prns, self.used_count
             dop_changed = False
             if dops:
                 dop = self.dop
-                for name, v in dops.items():
-                    if dop.get(name) != v:
-                        dop_changed = True
-                        break
+                dop_changed = not dops.items() <= dop.items()  # (a DOP new or not the same)
                 dop.update(dops)
                 mask |= DOP_SET
             if last_last == "" or (t == last_last and t != "N"):
@@ -177,9 +222,9 @@ class Sky:
             self.used_prns = used
             self.last_gsa_talker = t
             self.seen_gsa.add(t)
-            self.used_count = len(used)
+            self.used_count = count = len(used)
             mask |= USED_IS
-            if dop_changed or prev_count != self.used_count or prev_used != used:
+            if dop_changed or prev_count != count or prev_used != used:
                 self.changed = True  # a GSA repeating the last one changes nothing
         if t == "P" and self.seen_gsa & _OTHERS:
             mask = 0
@@ -190,48 +235,45 @@ class Sky:
     # -------------------------------------------------------------- GSV
     def zero(self) -> None:
         self.view = []
+        self.geometry = []
 
     def gsv(self, talker: str, f: tuple[str, ...]) -> tuple[int, bool]:
         """One GSV sentence -> (mask, more parts to come)."""
-        count = len(f) + 1
-        if count <= 3 or count % 4 not in (0, 1):
+        return self.gsv_read(talker, _gsv_fields(talker, f))
+
+    def gsv_read(self, talker: str, read: tuple) -> tuple[int, bool]:
+        """One GSV of what :func:`_gsv_fields` read -> (mask, more parts to come)."""
+        if not read:
             self.zero()
             return 0, False
-        sigid = atoi(f[-1]) if count % 4 == 1 else 0
-        self.awaited = atoi(f[0])
-        self.part = atoi(f[1])
+        sigid, self.awaited, self.part, sats = read
         if self.part < 1:
             self.zero()
             return 0, False
         t = talker[1:2]
-        gnss = 0
         if self.part == 1:
             if self.last_gsv_talker == "" or (t == "P" and sigid not in (2, 3, 5, 6)):
                 self.zero()
             self.last_gsv_talker = t
             self.seen_gsv.add(t)
-            gnss = _TALKER_GNSS.get(t, 0)
         view = self.view
+        geometry = self.geometry
         used = self.used_prns
-        end = count // 4 * 4 - 1
-        k = 3
-        while k < end:  # one satellite per 4 fields; a PRN of 0 skips one field only
+        for sat in sats:
             if len(view) >= MAXCHANNELS:
-                self.zero()
+                self.zero()  # (the loop's view is still the full one, as in gpsd)
                 break
-            num = atoi(f[k])
-            k += 1
-            if num == 0:
+            if sat is None:
                 continue
-            prn, ubx, sv = nmea_prn(talker, num, gnss)
-            sat = Satellite(prn, ubx, sv, _whole(f, k), _whole(f, k + 1), _whole(f, k + 2))
-            k += 3
-            if prn > 0 and sat.ss is not None and sat.ss > 0 and prn in used:
-                sat.used = True
-            view.append(sat)
+            if sat[1] and sat[0] in used:
+                view.append(sat[3])
+                if sat[4] is not None:
+                    geometry.append(sat[4])
+            else:
+                view.append(sat[2])
         if self.part < self.awaited:
             return 0, True
-        if not any(s.azimuth != 0 for s in view):
+        if not any(s.azimuth_deg != 0 for s in view):
             self.zero()
             return 0, False
         self.complete = True
@@ -243,49 +285,82 @@ class Sky:
     # -------------------------------------------------------------- DOPs
     def fill_dop(self) -> None:
         """DOPs from the satellites used, where the receiver gave none (gpsd fill_dop)."""
-        rows = []
-        for s in self.view:
-            if not s.used or s.prn < 1:
-                continue
-            az, el = s.azimuth, s.elevation
-            if az is None or not 0 <= az <= 359 or el is None or abs(el) > 90:
-                continue
-            a, e = math.radians(az), math.radians(el)
-            rows.append((math.sin(a) * math.cos(e), math.cos(a) * math.cos(e), math.sin(e), 1.0))
-        if len(rows) < 4:
-            return
-        prod = [[sum(r[i] * r[j] for r in rows) for j in range(4)] for i in range(4)]
-        inv = _invert4(prod)
-        if inv is None:
-            return
-        d = [inv[i][i] for i in range(4)]
-        computed = {
-            "xdop": d[0], "ydop": d[1], "hdop": d[0] + d[1], "vdop": d[2],
-            "pdop": d[0] + d[1] + d[2], "tdop": d[3], "gdop": d[0] + d[1] + d[2] + d[3],
-        }  # fmt: skip
-        for name, v in computed.items():
-            if name not in self.dop and v >= 0.0:
-                self.dop[name] = math.sqrt(v)
+        key = tuple(self.geometry)
+        dops = _DOPS.get(key)
+        if dops is None:
+            dops = _geometry_dops(key)
+            if len(_DOPS) >= 64:
+                _DOPS.clear()
+            _DOPS[key] = dops
+        dop = self.dop
+        for name, v in dops:
+            if name not in dop:
+                dop[name] = v
 
 
-def _whole(f: tuple[str, ...], i: int) -> float | None:
+_DOPS: dict[tuple, tuple] = table({})  # the (azimuth, elevation) of the satellites used -> DOPs
+
+
+def _geometry_dops(az_el: tuple[tuple[float, float], ...]) -> tuple[tuple[str, float], ...]:
+    """The DOPs of satellites at these azimuths and elevations (degrees), each as (name,
+    value), those a singular geometry (or fewer than 4 satellites) leaves out omitted:
+    the diagonal of the inverse of the normal matrix of the unit vectors (east, north,
+    up, 1), by Gauss-Jordan elimination with partial pivoting. The matrix's sums run in
+    the satellites' order (it is symmetric: 10 of them)."""
+    if len(az_el) < 4:
+        return ()
+    xx = xy = xz = xw = yy = yz = yw = zz = zw = ww = 0.0
+    for az, el in az_el:
+        a, e = math.radians(az), math.radians(el)
+        ce = math.cos(e)
+        x, y, z = math.sin(a) * ce, math.cos(a) * ce, math.sin(e)
+        xx += x * x
+        xy += x * y
+        xz += x * z
+        xw += x
+        yy += y * y
+        yz += y * z
+        yw += y
+        zz += z * z
+        zw += z
+        ww += 1.0
+    m = [
+        [xx, xy, xz, xw, 1.0, 0.0, 0.0, 0.0],
+        [xy, yy, yz, yw, 0.0, 1.0, 0.0, 0.0],
+        [xz, yz, zz, zw, 0.0, 0.0, 1.0, 0.0],
+        [xw, yw, zw, ww, 0.0, 0.0, 0.0, 1.0],
+    ]
+    for c in range(4):
+        p, best = c, abs(m[c][c])  # (the first row of the largest magnitude)
+        for r in range(c + 1, 4):
+            v = abs(m[r][c])
+            if v > best:
+                p, best = r, v
+        if best < 1e-12:
+            return ()
+        m[c], m[p] = m[p], m[c]
+        row = m[c]
+        piv = row[c]
+        row = m[c] = [x / piv for x in row]
+        for r in range(4):
+            if r != c:
+                mr = m[r]
+                k = mr[c]
+                if k != 0.0:
+                    m[r] = [x - k * y for x, y in zip(mr, row, strict=True)]
+    d0, d1, d2, d3 = m[0][4], m[1][5], m[2][6], m[3][7]
+    computed = (("xdop", d0), ("ydop", d1), ("hdop", d0 + d1), ("vdop", d2),
+                ("pdop", d0 + d1 + d2), ("tdop", d3), ("gdop", d0 + d1 + d2 + d3))  # fmt: skip
+    return tuple((name, math.sqrt(v)) for name, v in computed if v >= 0.0)
+
+
+def _whole(f: tuple[str, ...] | list[str], i: int) -> float | None:
     """A GSV number as gpsd reads it: the integer part, None when the field is empty."""
     v = f[i] if i < len(f) else ""
-    return float(atoi(v)) if v else None
+    w = _WHOLES.get(v, _NOT_READ)
+    if w is _NOT_READ:
+        return float(atoi(v))
+    return w  # type: ignore[return-value]
 
 
-def _invert4(m: list[list[float]]) -> list[list[float]] | None:
-    """Inverse of a 4x4 matrix (Gauss-Jordan, partial pivoting); None if singular."""
-    a = [row[:] + [1.0 if i == j else 0.0 for j in range(4)] for i, row in enumerate(m)]
-    for c in range(4):
-        p = max(range(c, 4), key=lambda r: abs(a[r][c]))
-        if abs(a[p][c]) < 1e-12:
-            return None
-        a[c], a[p] = a[p], a[c]
-        piv = a[c][c]
-        a[c] = [x / piv for x in a[c]]
-        for r in range(4):
-            if r != c and a[r][c] != 0.0:
-                k = a[r][c]
-                a[r] = [x - k * y for x, y in zip(a[r], a[c], strict=True)]
-    return [row[4:] for row in a]
+_NOT_READ = object()
