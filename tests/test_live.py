@@ -168,13 +168,17 @@ def test_hilnav_view_serves_every_robot_on_the_bus(viewer) -> None:
             bus.publish("odometry", RobotOdometry(t, Pose2D(), 0, 0, 0, 0, 12, False, True))
 
     wanted = {"/a/pose", "/b/pose", "/a/fox/pose", "/b/fox/pose", "/tf"}
+
+    def done(rs) -> bool:
+        # every topic, and a robot's base_link among the transforms (the /tf frames of
+        # one publish come as several messages, in no fixed order)
+        return {r.topic for r in rs} == wanted and any(
+            r.json()["child_frame_id"].endswith("base_link") for r in rs if r.topic == "/tf"
+        )
+
     try:
         with FoxgloveClient(f"ws://127.0.0.1:{wport}") as client:
-            got = client.collect(
-                wanted=lambda topic: topic in wanted,
-                done=lambda rs: {r.topic for r in rs} == wanted,
-                step=publish,
-            )
+            got = client.collect(wanted=lambda topic: topic in wanted, done=done, step=publish)
     finally:
         for bus in robots.values():
             bus.close()
