@@ -26,7 +26,7 @@ from drivers.nmea.fastpath import (
     vtg,
     zda,
 )
-from drivers.nmea.fields import _FAA, atoi, fnum, latlon, number
+from drivers.nmea.fields import _FAA, atoi, fnum, latlon, read_number
 from drivers.nmea.fields import NUMBERS as nums
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, gga_fix, rmc_fix
 from drivers.nmea.handlers import _GGA_STATUS, KNOTS_TO_MPS
@@ -81,16 +81,16 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     lat, lon = pos
     f8 = f[8]
     if f8:
-        alt = nums.get(f8) or number(f8)
+        alt = nums.get(f8) or read_number(f8)
         mode = MODE_3D if sats >= 4 else 2
     else:
         alt = None
         mode = 2
     f10 = f[10]
-    sep = (nums.get(f10) or number(f10)) if f10 else None
+    sep = (nums.get(f10) or read_number(f10)) if f10 else None
     if sats < 3:
         mode = MODE_NO_FIX
-    hdop = nums.get(f[7]) or number(f[7])
+    hdop = nums.get(f[7]) or read_number(f[7])
     if hdop is not None and not hdop < 99.0:
         hdop = None
     age = station = None
@@ -218,12 +218,12 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     speed_set = bool(f6)
     speed = None
     if speed_set:
-        speed = nums.get(f6) or number(f6)
+        speed = nums.get(f6) or read_number(f6)
         if speed is not None:
             speed *= KNOTS_TO_MPS
     f7 = f[7]
     track_set = bool(f7)
-    track = (nums.get(f7) or number(f7)) if track_set else None
+    track = (nums.get(f7) or read_number(f7)) if track_set else None
     magvar = None
     if f[9] and f[10]:
         var = fnum(f[9])

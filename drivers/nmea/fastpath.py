@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 
 from drivers.nmea.errmodel import error_model, motion_model
 from drivers.nmea.fields import NUMBERS as nums
-from drivers.nmea.fields import clock, ddmmyy, number
+from drivers.nmea.fields import clock, ddmmyy, read_number
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
 from drivers.nmea.handlers import KNOTS_TO_MPS
 from drivers.nmea.memo import table
@@ -162,9 +162,9 @@ def vtg(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     st.latch_frac = st.gsx_more = False
     sky = st.sky
     sky.last_gsv_talker = sky.last_gsa_talker = ""
-    track = nums.get(f0) or number(f0)
-    magtrack = (nums.get(f[2]) or number(f[2])) if f[2] else None
-    speed = nums.get(f4) or number(f4)
+    track = nums.get(f0) or read_number(f0)
+    magtrack = (nums.get(f[2]) or read_number(f[2])) if f[2] else None
+    speed = nums.get(f4) or read_number(f4)
     if speed is not None:
         speed *= KNOTS_TO_MPS
     comb._pending = True
@@ -218,10 +218,10 @@ def _gst_stats(tail: str) -> tuple:
     if len(f) >= 7:
         a, b, c, d, e, g, h = f[:7]
         get = nums.get  # (number(), the empty fields and the table looked at first)
-        stats = ((get(a) or number(a)) if a else None, (get(b) or number(b)) if b else None,
-                 (get(c) or number(c)) if c else None, (get(d) or number(d)) if d else None,
-                 (get(e) or number(e)) if e else None, (get(g) or number(g)) if g else None,
-                 (get(h) or number(h)) if h else None)  # fmt: skip
+        stats = ((get(a) or read_number(a)) if a else None, (get(b) or read_number(b)) if b else None,
+                 (get(c) or read_number(c)) if c else None, (get(d) or read_number(d)) if d else None,
+                 (get(e) or read_number(e)) if e else None, (get(g) or read_number(g)) if g else None,
+                 (get(h) or read_number(h)) if h else None)  # fmt: skip
     else:
         stats = ()
     if len(_GST) >= _CACHE_MAX:

@@ -49,14 +49,23 @@ NUMBERS: dict[str, float | None] = table({})  # field -> fnum(field), for number
 def number(s: str) -> float | None:
     """:func:`fnum`, remembered for the last fields read: a receiver repeats many (the
     geoid separation, the DOPs, an altitude or course that holds, a VTG's course and speed
-    after the RMC's). Hot paths look in ``NUMBERS`` first: ``NUMBERS.get(s) or number(s)``
-    (a false value, None or 0.0, is read again here, from the same table)."""
+    after the RMC's). Hot paths look in ``NUMBERS`` first: ``NUMBERS.get(s) or
+    read_number(s)`` (a false value, None or 0.0, is read again, to the same value)."""
     v = NUMBERS.get(s, _MISSING)
     if v is _MISSING:
         if len(NUMBERS) >= _NUMBERS_MAX:
             NUMBERS.clear()
         v = NUMBERS[s] = fnum(s)
     return v  # type: ignore[return-value]
+
+
+def read_number(s: str) -> float | None:
+    """:func:`number` once ``NUMBERS`` had no true value for the field (hot paths:
+    ``NUMBERS.get(s) or read_number(s)``): fnum(s), kept in the table."""
+    if len(NUMBERS) >= _NUMBERS_MAX:
+        NUMBERS.clear()
+    v = NUMBERS[s] = fnum(s)
+    return v
 
 
 _MISSING = object()

@@ -112,7 +112,9 @@ def _gsa_fields(
             prn = nmea_prn(talker, num, gnss)[0]
             if prn > 0:
                 prns.append(prn)
-    return (atoi(f[1]), f[1][:1] != "E", dops, tuple(prns))
+    mode_set = f[1][:1] != "E"
+    mask = (MODE_SET if mode_set else 0) | (DOP_SET if dops else 0) | USED_IS
+    return (atoi(f[1]), mode_set, dops, tuple(prns), mask)
 
 
 # A satellite in the view is the message itself (immutable, so one object serves every
@@ -184,6 +186,7 @@ class Sky:
         self.dop: dict[str, float] = {}  # xdop ydop hdop vdop pdop tdop gdop
         self.last_gsa_talker = ""
         self.last_gsv_talker = ""
+        self.last_read: tuple | None = None  # what the last GSA read (_gsa_fields)
         self.seen_gsa: set[str] = set()
         self.seen_gsv: set[str] = set()
         self.part = self.awaited = 0
@@ -203,9 +206,28 @@ class Sky:
         GGA; its talker still counts); the mode it gives is ``read[0]``."""
         t = talker[1:2]
         last_last = self.last_gsa_talker
+        if (
+            read is not None
+            and read is self.last_read
+            and last_last == ""
+            and self.used_prns is read[3]
+            and self.used_count == len(read[3])
+        ):  # the last GSA again, after other sentences: only the DOPs may have changed
+            mask = read[4]
+            dops = read[2]
+            if dops:
+                dop = self.dop
+                if not dops.items() <= dop.items():
+                    dop.update(dops)
+                    self.changed = True
+            self.last_gsa_talker = t
+            if t == "P" and self.seen_gsa & _OTHERS:
+                return 0
+            return MODE_SET if t == "N" else mask
         mask = 0
         if read is not None:
-            mode, mode_set, dops, prns = read
+            mode, mode_set, dops, prns, _ = read
+            self.last_read = read
             if mode_set:
                 mask = MODE_SET
             prev_used, prev_count = self.used_prns, self.used_count
