@@ -431,11 +431,12 @@ def _heap_slack() -> None:
     """The daemon's heap setting (hilnav.heap: numpy's per-scan arrays without page
     faults), in this process and, by glibc's environment variable, in a baseline's."""
     try:
-        from hilnav.heap import TOP_PAD_BYTES, keep_heap_slack
+        from hilnav.heap import MMAP_THRESHOLD_BYTES, TOP_PAD_BYTES, keep_heap_slack
     except ImportError:  # an older checkout's packages (--baseline): our parent set it
         return
-    keep_heap_slack()
-    os.environ.setdefault("MALLOC_TOP_PAD_", str(TOP_PAD_BYTES))
+    if keep_heap_slack():
+        os.environ["MALLOC_TOP_PAD_"] = str(TOP_PAD_BYTES)
+        os.environ["MALLOC_MMAP_THRESHOLD_"] = str(MMAP_THRESHOLD_BYTES)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -54,7 +54,7 @@ snapshots and the rebuild after a correction), :mod:`mapping.se2` (pose algebra)
 This module keeps the state (estimate, cloud, maps, snapshots, records, the drift test)
 and runs them scan by scan. Every scan goes into the map, ``ref_lag_m`` later into the
 reference map (its cells then taken from the first insertion: :mod:`mapping.ir_memo`)
-and into each drift hypothesis' map (the four in one computation:
+and into each drift hypothesis' map (the four sharing the lattice of the cones:
 ``IrInverseModel.integrate_each``).
 """
 

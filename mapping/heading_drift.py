@@ -44,10 +44,10 @@ Cost: K reference maps and K insertions of each scan as it ages (the same scans 
 association's reference map, within what is left of the step's budget), and K + 1 ray
 casts of one scan per window spacing. The scans before the start go in at the same
 poses for every branch: until the first scan after it comes of age the branches share
-one map (copied when they part). The K insertions of a scan are one computation for the
-branches' maps of one origin (``IrInverseModel.integrate_each``), and none goes through
-the memo of the association's maps (other poses: never asked for again). Bit for bit
-what K maps of their own, each inserting alone, give.
+one map (copied when they part). The K insertions of a scan share the lattice of its
+cones (``IrInverseModel.integrate_each``), and none goes through the memo of the
+association's maps (other poses: never asked for again). Bit for bit what K maps of
+their own, each inserting alone, give.
 """
 
 from __future__ import annotations

@@ -111,21 +111,6 @@ def lattice(reach: np.ndarray, h: np.ndarray, res: float) -> Lattice:
     return Lattice(kb, t, big, first, cnt, lat * spacing)
 
 
-def tiled(lat: Lattice, copies: int) -> Lattice:
-    """The :class:`Lattice` of ``copies`` copies of the same cones one after the other
-    (what :func:`lattice` of the repeated lengths and half-angles gives, copied)."""
-    beams, rows = len(lat.first), len(lat.kb)
-    step = np.arange(copies)
-    return Lattice(
-        np.tile(lat.kb, copies) + (step * beams).repeat(rows),
-        np.tile(lat.t, copies),
-        np.tile(lat.big, copies),
-        np.tile(lat.first, copies) + (step * rows).repeat(beams),
-        np.tile(lat.cnt, copies),
-        np.tile(lat.lat, copies),
-    )
-
-
 def cone_cells(
     grid: OccupancyGrid,
     x: np.ndarray,
