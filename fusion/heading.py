@@ -76,10 +76,10 @@ import numpy as np
 
 from fusion.alignment import Advance, AlignedInput, Deferred, GyroOdometryAlignment
 from fusion.arrival import ArrivalOrder
+from fusion.ekf_update import chi2_gate
 from fusion.heading_params import DEG, HeadingParams
 from fusion.increments import OdometryStep
 from msgs import HeadingEstimate, Pose2D, wrap_angle
-from numerics.chi2 import chi2_ppf
 
 LOST_3SIGMA_RAD = math.pi / 2
 # State indices: the clone of theta at the start of the current interval, theta, c_d, c_t,
@@ -112,7 +112,7 @@ class HeadingFilter(AlignedInput):
         self.params = params or HeadingParams()
         self._align = GyroOdometryAlignment(self.params, arrival)
         g = self.params.gyro_gate_probability
-        self.heading_gate = math.inf if g is None else chi2_ppf(g, 1)
+        self.heading_gate = chi2_gate(g, 1)
         self._count = HeadingCounters()
         self.reset(initial or Pose2D(), 0)
 

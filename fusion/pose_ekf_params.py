@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fusion.ekf_update import chi2_gate
 from msgs import GpsFix
-from numerics.chi2 import chi2_ppf
 
 DEG = math.pi / 180.0
 
@@ -88,9 +88,7 @@ class PoseEkfParams:
 
     def gate(self, dof: int) -> float:
         """Chi-square gate on the NIS for a measurement of ``dof`` dimensions (inf: off)."""
-        if self.gate_probability is None:
-            return math.inf
-        return chi2_ppf(self.gate_probability, dof)
+        return chi2_gate(self.gate_probability, dof)
 
     @property
     def n_states(self) -> int:

@@ -49,7 +49,7 @@ from hilnav.config import RobotConfig
 from hilnav.log.encoding import ViewMemo, stamp_of
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
-from hilnav.runtime_queue import Item, RuntimeQueue, RuntimeStats
+from hilnav.runtime_queue import Item, RuntimeQueue, RuntimeStats, Wake
 from hilnav.sinks import Sink, Sinks, default_log_path, open_run_log
 from hilnav.topics import PEER_TOPICS, PUBLISHED, log_topic
 from msgs import DaemonStatus
@@ -87,7 +87,7 @@ class RobotRuntime(RuntimeQueue):
         sinks: dict[str, Sink] | None = None,
         queue_size: int = 20000,
         prog: str = "hilnav run",
-        wake: threading.Event | None = None,
+        wake: Wake | None = None,
         pipeline: Callable[..., Any] = Pipeline,
         memo: ViewMemo | None = None,
     ) -> None:

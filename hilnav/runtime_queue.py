@@ -13,10 +13,18 @@ runtimes, a fleet host, waits on one event).
 from __future__ import annotations
 
 import queue
-import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
+
+
+class Wake(Protocol):
+    """What a queue sets to wake its consumer: ``threading.Event`` (a fleet host's
+    stepping thread) or ``hilnav.devloop.WakePipe`` (the daemon's device loop)."""
+
+    def set(self) -> None: ...
+
+    def is_set(self) -> bool: ...
 
 
 @dataclass(slots=True)
@@ -45,7 +53,7 @@ class RuntimeStats:
 class RuntimeQueue:
     """The queue, its producers (any thread) and its consumer's takes (one thread)."""
 
-    def __init__(self, queue_size: int, wake: threading.Event | None) -> None:
+    def __init__(self, queue_size: int, wake: Wake | None) -> None:
         self.stats = RuntimeStats()
         self.wake = wake  # set on every put (a consumer serving several runtimes waits on it)
         # topics whose put() does not set ``wake`` (the consumer takes them at its next turn)
