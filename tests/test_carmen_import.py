@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -157,3 +158,54 @@ def test_replay_maps_it_and_analyze_scores_it(imported: Path, tmp_path: Path) ->
     assert ra.paths["heading"].position.error_m.mean < 0.3
     assert ra.map is not None and ra.map.scores is not None
     assert ra.map.scores.occupied_precision > 0.3 and ra.heading_consistency is not None
+
+
+def test_ir_real_bench_on_a_slice_with_other_mounts(shared_dir: Path) -> None:
+    """``bench/ir_real.py`` on 600 scans with a three-sensor layout: every figure of its
+    last line is there, and the true-heading floor (odometry distances along the
+    reference heading) is the odometry's distance error: zero only at the start."""
+    proc = subprocess.run(
+        ["python3", str(ROOT / "bench" / "ir_real.py"), str(INTEL), "--scans", "600",
+         "--seeds", "1", "--no-encoders-only", "--mounts", "0.2,0,0;0.1,0.15,60;0,-0.2,-90"],
+        capture_output=True, text=True, timeout=300, env=hilnav_env(),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.strip().splitlines()
+    rep = json.loads(lines[-1])
+    assert rep["mounts"] == 3 and rep["scans"] == 600 and rep["seeds"] == 1
+    assert any(line.startswith("true heading") for line in lines)
+    for key in ("pose_err_true_heading_m", "pose_err_noda_m", "pose_err_da_median_m",
+                "precision_true_heading", "precision_da_median", "recall_da_median"):  # fmt: skip
+        assert rep[key] is not None and math.isfinite(rep[key]), key
+    assert 0.0 < rep["pose_err_true_heading_m"] < 1.0  # 16 m of a real robot's odometry
+    assert rep["precision_true_heading"] <= rep["precision_ref"]
+
+
+def test_true_heading_floor_is_exact_when_the_odometry_is(
+    shared_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The floor composes the odometry's steps along the reference heading: with the
+    reference poses as the odometry it gives them back."""
+    import importlib.util
+    from dataclasses import replace
+
+    from hilnav.importers.carmen import emulate
+
+    spec = importlib.util.spec_from_file_location("ir_real", ROOT / "bench" / "ir_real.py")
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "ir_real", bench)  # its dataclasses look it up
+    spec.loader.exec_module(bench)
+    log = load_laser_log(MAT, GFS).head(400)
+    run = emulate(log, np.array([[0.2, 0.0, 0.0]]))
+    from msgs import Pose2D
+
+    exact = [
+        replace(o, pose=Pose2D(*map(float, p)))
+        for o, p in zip(run.odometry, log.reference, strict=True)
+    ]
+    run_exact = replace(run, odometry=exact)
+    got = np.array([[p.x, p.y, p.theta] for p in bench.true_heading_poses(run_exact)])
+    np.testing.assert_allclose(got[:, :2], log.reference[:, :2], atol=1e-9)
+    real = np.array([[p.x, p.y] for p in bench.true_heading_poses(run)])
+    assert np.hypot(*(real - log.reference[:, :2]).T).max() > 0.01  # the log's distance error
