@@ -278,15 +278,36 @@ def grid_config(resolution_m: float) -> GridConfig:
     return GridConfig(resolution_m=resolution_m, origin_m=(-1.0, -1.0), size_m=(9.0, 9.0))
 
 
+def daemon_motion_filter() -> Any:
+    """The daemon's motion filter (mapping.motion_filter: the scans the grid takes)."""
+    try:
+        from hilnav.services import motion_filter_config
+        from mapping.motion_filter import MotionFilter
+    except ImportError:  # an older checkout's packages (--baseline): every scan
+        return _EveryScan()
+    from hilnav.config import load_config
+
+    return MotionFilter(motion_filter_config(load_config(None)))
+
+
+class _EveryScan:
+    def keep(self, pose: Any, stamp_ns: int) -> bool:
+        return True
+
+
 def map_without_da(
     run: Run, resolution_m: float = 0.05, inverse: InverseModelConfig | None = None,
     use_truth: bool = False,
 ) -> OccupancyGrid:  # fmt: skip
-    """The plain eq. 5-6 map with the poses as estimated (or the true ones)."""
+    """The plain eq. 5-6 map with the poses as estimated (or the true ones), of the scans
+    the daemon's motion filter takes at those poses."""
     grid = OccupancyGrid(grid_config(resolution_m))
     model = IrInverseModel(inverse or InverseModelConfig())
+    motion = daemon_motion_filter()
     for s in run.steps:
         pose = s.truth if use_truth else s.heading.pose
+        if not motion.keep(pose, s.scan.stamp_ns):
+            continue
         sigma = 0.0 if use_truth else math.sqrt(max(s.heading.variance_rad2, 0.0))
         model.integrate(grid, beams_from_scan(pose, sigma, s.scan, MOUNTS))
     return grid
@@ -311,8 +332,10 @@ def map_with_da(
         inverse or InverseModelConfig(),
         seed=seed,
     )
+    motion = daemon_motion_filter()
     for s in run.steps:
-        da.step(s.heading, s.scan)
+        if motion.keep(s.heading.pose, s.scan.stamp_ns):
+            da.step(s.heading, s.scan)
     da.finish()
     return da
 
@@ -387,6 +410,7 @@ def measure(args: argparse.Namespace) -> dict:
         "paper_match_ratio": [0.44, 0.83],
         "distance_m": round(run.distance_m, 1),
         "scans": len(run.steps),
+        "scans_mapped_with_da": len(da.trajectory),
         "final_heading_error_deg": round(run.final_heading_error_deg, 2),
         "final_position_error_m": round(run.final_position_error_m, 3),
         "da_outcomes": outcomes,

@@ -6,8 +6,9 @@ beams become IR readings at the mounts (``--mounts``, default: the daemon's
 ``geometry.ir_mounts``) through ``hilnav import carmen``'s emulation (Sharp limits 1-5.5
 m; ``--ir-noise``: the Sharp noise model), and the maps are built as the daemon builds
 them: heading filter (encoders, or encoders + a gyro emulated on the reference heading
-with the fakes' CruzCore model) -> IR grid (eq. 5-6), without and with the sample-based
-data association (eq. 7-8). Runs:
+with the fakes' CruzCore model) -> the daemon's motion filter (mapping.motion_filter: the
+scans the grid takes) -> IR grid (eq. 5-6), without and with the sample-based data
+association (eq. 7-8). Runs:
 
 - reference: the IR map at the reference (corrected) poses;
 - true heading: dead reckoning with the reference heading and the odometry's steps, the
@@ -18,7 +19,8 @@ data association (eq. 7-8). Runs:
 Each map is scored against the laser map at the reference poses on the cells the IR
 sensors observe from those poses (mapping.map_scores: occupied precision / recall within
 2 cells, alignment; the paper's match ratio for comparison). Pose error: the mean
-distance of the mapped poses from the reference; heading NEES against the reference.
+distance of the mapped poses (the scans the motion filter took) from the reference;
+heading NEES against the reference, at every scan.
 The table goes to stdout; the LAST line is a JSON object with precision_noda,
 recall_noda, precision_da_median, recall_da_median, pose_err_noda_m,
 pose_err_da_median_m (medians over the seeds, gyro runs), da_worse_runs (seeds where
@@ -50,12 +52,13 @@ from fusion.heading import HeadingFilter, HeadingParams
 from hilnav.config import load_config
 from hilnav.heap import keep_heap_slack
 from hilnav.importers.carmen import EmulatedRun, emulate, reference_map, stream
-from hilnav.services import association_config, heading_params
+from hilnav.services import association_config, heading_params, motion_filter_config
 from mapping.association import AssociationConfig, SampleAssociation
 from mapping.carmen import load_laser_log
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.ir_inverse import InverseModelConfig, IrInverseModel, beams_from_scan
 from mapping.map_scores import MapScore, ReferenceMap, score
+from mapping.motion_filter import MotionFilter, MotionFilterConfig
 from mapping.se2 import relative
 from msgs import HeadingEstimate, Pose2D
 from numerics.angles import wrap
@@ -108,11 +111,18 @@ def headings(run: EmulatedRun, params: HeadingParams, use_gyro: bool) -> list[He
     return out
 
 
-def plain_map(run: EmulatedRun, grid_cfg: GridConfig, poses, sigmas) -> OccupancyGrid:
+def mapped(run: EmulatedRun, poses: list[Pose2D], motion: MotionFilterConfig) -> np.ndarray:
+    """Indices of the scans the daemon's motion filter takes at ``poses``."""
+    f = MotionFilter(motion)
+    return np.array([i for i, (p, s) in enumerate(zip(poses, run.scans, strict=True))
+                     if f.keep(p, s.stamp_ns)], dtype=int)  # fmt: skip
+
+
+def plain_map(run: EmulatedRun, grid_cfg: GridConfig, poses, sigmas, keep) -> OccupancyGrid:
     grid = OccupancyGrid(grid_cfg)
     model = IrInverseModel(InverseModelConfig())
-    for p, s, scan in zip(poses, sigmas, run.scans, strict=True):
-        model.integrate(grid, beams_from_scan(p, s, scan, run.mounts))
+    for i in keep:
+        model.integrate(grid, beams_from_scan(poses[i], sigmas[i], run.scans[i], run.mounts))
     return grid
 
 
@@ -153,25 +163,27 @@ def run_maps(
     grid_cfg: GridConfig,
     da_seed: int | None,
     da_cfg: AssociationConfig,
+    motion: MotionFilterConfig,
 ) -> Result:
     ref = run.log.reference
     t0 = time.perf_counter()
     n, sig_deg, herr = nees(est, ref)
+    poses = [e.pose for e in est]
+    keep = mapped(run, poses, motion)
     if da_seed is None:
-        poses = [e.pose for e in est]
         sig = [math.sqrt(max(e.variance_rad2, 0.0)) for e in est]
-        grid = plain_map(run, grid_cfg, poses, sig)
-        traj = np.array([[p.x, p.y, p.theta] for p in poses])
-        r = Result(name, score(grid, ref_map), *pose_errors(traj, ref), n, sig_deg, herr)
+        grid = plain_map(run, grid_cfg, poses, sig, keep)
+        traj = np.array([[p.x, p.y, p.theta] for p in poses])[keep]
+        r = Result(name, score(grid, ref_map), *pose_errors(traj, ref[keep]), n, sig_deg, herr)
     else:
         da = SampleAssociation(run.mounts, da_cfg, grid_cfg, InverseModelConfig(), seed=da_seed)
         worst = 0.0
-        for e, scan in zip(est, run.scans, strict=True):
+        for i in keep:
             ts = time.perf_counter()
-            da.step(e, scan)
+            da.step(est[i], run.scans[i])
             worst = max(worst, time.perf_counter() - ts)
         traj = da.trajectory
-        r = Result(name, score(da.grid, ref_map), *pose_errors(traj, ref), n, sig_deg, herr,
+        r = Result(name, score(da.grid, ref_map), *pose_errors(traj, ref[keep]), n, sig_deg, herr,
                    worst, da.outcome_counts())  # fmt: skip
         r.grid = da.grid
     r.seconds = time.perf_counter() - t0
@@ -216,14 +228,19 @@ def main(argv: list[str] | None = None) -> int:
     params = heading_params(cfg)
     base = emulate(log, mounts, ir_noise_seed=0 if args.ir_noise else None)
     laser = reference_map(base, m.resolution_m, m.origin_m)
+    motion = motion_filter_config(cfg)
     ref_poses = [Pose2D(*map(float, p)) for p in log.reference]
-    ideal = plain_map(base, grid_cfg, ref_poses, [0.0] * len(ref_poses))
-    ref_map = laser.with_observed(ideal)
+    every = np.arange(len(ref_poses))
+    zeros = [0.0] * len(ref_poses)
+    # The cells scored: those the IR sensors observe from the reference poses, every scan.
+    ref_map = laser.with_observed(plain_map(base, grid_cfg, ref_poses, zeros, every))
+    ideal = plain_map(base, grid_cfg, ref_poses, zeros, mapped(base, ref_poses, motion))
     results = [Result("reference poses", score(ideal, ref_map), 0.0, 0.0)]
     true_th = true_heading_poses(base)
-    traj = np.array([[p.x, p.y, p.theta] for p in true_th])
-    floor = Result("true heading", score(plain_map(base, grid_cfg, true_th, [0.0] * len(true_th)),
-                                         ref_map), *pose_errors(traj, log.reference))  # fmt: skip
+    keep = mapped(base, true_th, motion)
+    traj = np.array([[p.x, p.y, p.theta] for p in true_th])[keep]
+    floor = Result("true heading", score(plain_map(base, grid_cfg, true_th, zeros, keep), ref_map),
+                   *pose_errors(traj, log.reference[keep]))  # fmt: skip
     print(f"{src.name}: {len(log)} scans, {log.path_length_m():.0f} m driven, "
           f"{len(mounts)} IR mounts, reference: {log.reference_source}")  # fmt: skip
     print(f"{'run':18s} {'prec':>5s} {'rec':>5s} {'align':>5s} {'match':>5s} {'pose_m':>7s} "
@@ -234,16 +251,17 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_encoders_only:
         est = headings(base, params, use_gyro=False)
         for name, seed in (("encoders no DA", None), ("encoders DA", 0)):
-            results.append(run_maps(name, base, est, ref_map, grid_cfg, seed, da_cfg))
+            results.append(run_maps(name, base, est, ref_map, grid_cfg, seed, da_cfg, motion))
             print(row(results[-1]), flush=True)
     noda, da = [], []
     for seed in range(1, args.seeds + 1):
         run = emulate(log, mounts, ir_noise_seed=seed if args.ir_noise else None, gyro_seed=seed,
                       gyro_rate_hz=float(cfg.devices.gyro.rate_hz))  # fmt: skip
         est = headings(run, params, use_gyro=True)
-        noda.append(run_maps(f"gyro {seed} no DA", run, est, ref_map, grid_cfg, None, da_cfg))
+        noda.append(run_maps(f"gyro {seed} no DA", run, est, ref_map, grid_cfg, None, da_cfg,
+                             motion))  # fmt: skip
         print(row(noda[-1]), flush=True)
-        da.append(run_maps(f"gyro {seed} DA", run, est, ref_map, grid_cfg, seed, da_cfg))
+        da.append(run_maps(f"gyro {seed} DA", run, est, ref_map, grid_cfg, seed, da_cfg, motion))
         print(row(da[-1]), flush=True)
         if args.out is not None:
             from mapping.export import write_png

@@ -43,6 +43,7 @@ from mapping.association import AssociationConfig, SampleAssociation
 from mapping.export import to_grid_msg
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.ir_inverse import InverseModelConfig, IrInverseModel, beams_from_scan
+from mapping.motion_filter import MotionFilter, MotionFilterConfig
 from msgs import (
     GpsFix,
     GyroSample,
@@ -239,8 +240,15 @@ def association_config(cfg: RobotConfig) -> AssociationConfig:
     )
 
 
+def motion_filter_config(cfg: RobotConfig) -> MotionFilterConfig:
+    """Which scans the grid takes (mapping.motion_filter), from the robot config."""
+    m = cfg.services.mapping
+    return MotionFilterConfig(m.min_travel_m, math.radians(m.min_turn_deg), m.max_interval_s)
+
+
 class MappingAdapter:
-    """IR grid mapping fed HeadingEstimate + IrScan; map output throttled by stamp."""
+    """IR grid mapping fed HeadingEstimate + IrScan; map output throttled by stamp. The
+    scans go through the motion filter first (``filter.dropped`` counts those it leaves out)."""
 
     def __init__(self, cfg: RobotConfig) -> None:
         m = cfg.services.mapping
@@ -253,6 +261,7 @@ class MappingAdapter:
         self.heading: HeadingEstimate | None = None
         self.scans = 0
         self.mismatched = 0
+        self.filter = MotionFilter(motion_filter_config(cfg))
         self._last_map_ns: int | None = None
         if m.association:
             self.da: SampleAssociation | None = SampleAssociation(
@@ -283,7 +292,9 @@ class MappingAdapter:
             return []
         self.scans += 1
         out: Outputs = []
-        if self.da is not None:
+        if not self.filter.keep(self.heading.pose, msg.stamp_ns):
+            pass  # (almost) where the last scan was taken: counted in filter.dropped
+        elif self.da is not None:
             report = self.da.step(self.heading, msg)
             if report is not None:
                 out.append(("association", report))

@@ -203,6 +203,11 @@ class MappingService:
     samples: int = field(default=200, metadata=_check(lambda v: v >= 10, "must be >= 10"))
     publish_every_s: float = field(default=2.0, metadata=_positive("2.0"))
     seed: int = 0
+    # The motion filter (mapping.motion_filter): a scan goes into the grid after this
+    # much travel, or turn, or time since the last one; min_travel_m 0 maps every scan.
+    min_travel_m: float = field(default=0.05, metadata=_non_negative("0.05"))
+    min_turn_deg: float = field(default=2.0, metadata=_non_negative("2.0"))
+    max_interval_s: float = field(default=1.0, metadata=_non_negative("1.0"))
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,77 @@
+"""The motion filter before the IR grid (mapping.motion_filter) and the mapping service
+that uses it: which scans go into the grid."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from hilnav.config import parse_config
+from hilnav.services import MappingAdapter, motion_filter_config
+from mapping.motion_filter import MotionFilter, MotionFilterConfig
+from msgs import HeadingEstimate, IrScan, Pose2D
+
+MS = 1_000_000
+
+
+def test_travel_turn_time_and_the_first_scan() -> None:
+    f = MotionFilter(MotionFilterConfig(min_travel_m=0.05, min_turn_rad=math.radians(2),
+                                        max_interval_s=1.0))  # fmt: skip
+    assert f.keep(Pose2D(0, 0, 0), 0)  # the first
+    assert not f.keep(Pose2D(0.03, 0.0, 0.0), 50 * MS)
+    assert not f.keep(Pose2D(0.049, 0.0, 0.0), 100 * MS)  # 4.9 cm since the last kept
+    assert f.keep(Pose2D(0.03, 0.04, 0.0), 150 * MS)  # 5 cm: kept
+    assert not f.keep(Pose2D(0.03, 0.04, math.radians(1.9)), 200 * MS)
+    assert f.keep(Pose2D(0.03, 0.04, math.radians(-2.1)), 250 * MS)  # turned the other way
+    # standing still: once a second, not at the scan rate
+    assert not f.keep(Pose2D(0.03, 0.04, math.radians(-2.1)), 1249 * MS)
+    assert f.keep(Pose2D(0.03, 0.04, math.radians(-2.1)), 1250 * MS)
+    # the turn is measured across the wrap at pi
+    g = MotionFilter()
+    assert g.keep(Pose2D(0, 0, math.pi - 0.01), 0)
+    assert not g.keep(Pose2D(0, 0, -math.pi + 0.01), MS)  # 1.1 deg, not 358.9
+    assert (f.kept, f.dropped) == (4, 4)
+
+
+def test_a_clock_that_goes_back_and_a_pose_that_is_not_finite_are_not_dropped() -> None:
+    f = MotionFilter()
+    assert f.keep(Pose2D(1.0, 1.0, 0.0), 10_000 * MS)
+    assert f.keep(Pose2D(1.0, 1.0, 0.0), 5_000 * MS)  # a reset source: start again
+    assert not f.keep(Pose2D(1.0, 1.0, 0.0), 5_100 * MS)
+    assert f.keep(Pose2D(math.nan, 1.0, 0.0), 5_200 * MS)  # the grid's own check counts it
+    assert not f.keep(Pose2D(1.0, 1.0, 0.0), 5_300 * MS)  # measured from the last finite
+
+
+def test_zero_travel_maps_every_scan_and_bad_thresholds_are_refused() -> None:
+    f = MotionFilter(MotionFilterConfig(min_travel_m=0.0))
+    assert all(f.keep(Pose2D(0, 0, 0), i * MS) for i in range(20))
+    for bad in ({"min_travel_m": -0.01}, {"min_turn_rad": math.nan},
+                {"max_interval_s": math.inf}):  # fmt: skip
+        with pytest.raises(ValueError, match="motion filter"):
+            MotionFilterConfig(**bad)
+
+
+def _feed(adapter: MappingAdapter, poses: list[Pose2D], period_ms: int = 50) -> None:
+    for i, p in enumerate(poses):
+        t = (i + 1) * period_ms * MS
+        adapter.feed("heading", HeadingEstimate(t, p.theta, 1e-6, p))
+        adapter.feed("ir", IrScan(t, 1, i, (2.0,) * 6, ("ok",) * 6, (1.0,) * 6))
+
+
+@pytest.mark.parametrize("association", [False, True])
+def test_the_mapping_service_maps_at_a_spacing_of_travel(association: bool) -> None:
+    """20 Hz scans at 0.3 m/s (1.5 cm apart) over 3 m: a scan every 5 cm goes in; then
+    standing still for 5 s: one a second. The config sets the spacing; 0 maps each."""
+    cfg = parse_config({"services": {"mapping": {"association": association}}})
+    assert motion_filter_config(cfg) == MotionFilterConfig()
+    a = MappingAdapter(cfg)
+    moving = [Pose2D(0.015 * i, 0.0, 0.0) for i in range(200)]
+    _feed(a, moving + [moving[-1]] * 100)
+    assert a.scans == 300 and a.filter.kept + a.filter.dropped == 300
+    assert a.filter.kept == 50 + 5  # every 4th scan moving (6 cm), then one a second
+    if association:
+        assert a.da is not None and len(a.da.trajectory) == a.filter.kept
+    every = MappingAdapter(parse_config({"services": {"mapping": {"min_travel_m": 0.0}}}))
+    _feed(every, moving)
+    assert every.filter.dropped == 0 and every.grid.updates > a.grid.updates > 0
