@@ -23,7 +23,7 @@ from ir_drive import MOUNTS, drifted, ir_scans, truth_path
 import mapping.association as association_module
 import mapping.ir_cone as ir_cone
 from mapping.association import AssociationConfig, SampleAssociation
-from mapping.beam_model import FieldBeamModel, unknown_p
+from mapping.beam_model import FieldBeamModel, distance_cells, unknown_p
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.heading_drift import DriftBank
 from mapping.ir_inverse import KIND_CLEAR, KIND_HIT, KIND_SKIP, Beams, IrInverseModel
@@ -300,3 +300,28 @@ def test_grid_add_on_a_wide_map_sums_in_the_cells_box_like_np_unique():
             np.testing.assert_array_equal(
                 g.logodds.reshape(-1).view(np.uint32), want.view(np.uint32)
             )
+
+
+def test_the_distance_field_equals_scipys_bit_for_bit():
+    """The association's distance field (the ``edt`` library's squared distances, the
+    root in float64) is scipy.ndimage's ``distance_transform_edt``, bit for bit: random
+    maps of every density and shape, a single obstacle in a corner, a row and a column,
+    and a field too large for float32's exact integers (scipy's own path)."""
+    from scipy.ndimage import distance_transform_edt
+
+    rng = np.random.default_rng(7)
+    cases = [rng.random((r, c)) >= p for r, c, p in
+             [(260, 260, 0.02), (61, 307, 0.005), (1, 50, 0.1), (50, 1, 0.1), (7, 9, 0.5),
+              (240, 200, 0.0005), (3, 3, 0.9)]]  # fmt: skip
+    corner = np.ones((120, 90), dtype=bool)
+    corner[0, 0] = False
+    wide = np.ones((1, 4100), dtype=bool)
+    wide[0, 17] = False
+    for free in [*cases, corner, wide]:
+        if free.all():
+            free[0, 0] = False
+        got = distance_cells(free)
+        want = distance_transform_edt(free)
+        assert got.dtype == np.float64 and got.shape == free.shape
+        assert np.array_equal(got, want), free.shape
+        assert np.array_equal((got * 0.05).astype(np.float32), (want * 0.05).astype(np.float32))
