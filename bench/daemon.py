@@ -17,6 +17,10 @@ Prints, the LAST line a JSON object:
   at once when the gyro has caught up with it, else wait for the gyro sample that covers
   it, fusion.arrival rule 2) and ``pose_after_release_ms_*`` (that input received to the
   pose arriving: the daemon's own work and Zenoh);
+- ``transport_ms_p50`` / ``_p99``: the floor under the pose latency on this machine,
+  measured at the same time: a second Python process with nothing else to do puts its
+  clock 20 times a second to a third Zenoh session of this process over loopback TCP
+  (what the pose's last hop is, without the daemon's work);
 - ``mcap_messages_per_s``: messages in the log (all topics, raw bytes and Foxglove views
   included) per second of run; ``dropped``: messages the daemon's queues dropped.
 
@@ -105,6 +109,52 @@ def start_daemon(
         env=env,
     )
     return proc, log
+
+
+PINGER = """
+import json, sys, time, zenoh
+conf = zenoh.Config()
+conf.insert_json5("mode", '"peer"')
+conf.insert_json5("connect/endpoints", json.dumps([sys.argv[1]]))
+conf.insert_json5("listen/endpoints", "[]")
+conf.insert_json5("scouting/multicast/enabled", "false")
+session = zenoh.open(conf)
+pub = session.declare_publisher("hilnav-bench/ping")
+end = time.monotonic() + float(sys.argv[2])
+while time.monotonic() < end:
+    pub.put(str(time.time_ns()).encode())
+    time.sleep(0.05)
+session.close()
+"""
+
+
+class TransportFloor:
+    """The pinger's (PINGER, its own process) clock readings, received in a Zenoh session
+    of this process that listens on ``port``: ms from each put to its arrival."""
+
+    def __init__(self, port: int, seconds: float) -> None:
+        import zenoh
+
+        conf = zenoh.Config()
+        conf.insert_json5("mode", '"peer"')
+        conf.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+        conf.insert_json5("scouting/multicast/enabled", "false")
+        self.values: list[float] = []
+        self._session = zenoh.open(conf)
+        self._sub = self._session.declare_subscriber("hilnav-bench/ping", self._on)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", PINGER, f"tcp/127.0.0.1:{port}", str(seconds)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+
+    def _on(self, sample) -> None:
+        now = time.time_ns()
+        self.values.append((now - int(bytes(sample.payload))) * 1e-6)
+
+    def close(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(timeout=10)
+        self._session.close()
 
 
 class PoseLatencies:
@@ -228,7 +278,9 @@ def main(argv: list[str] | None = None) -> int:
     op.bus.subscribe("r1", "pose", latencies.on_pose)
     if not wait_for_robot(op, proc):
         return 1
+    floor = TransportFloor(free_tcp_port(), args.seconds + 5.0)
     cpu, fcpu, elapsed = drive_tour(op, proc, latencies, args.seconds)
+    floor.close()
     rss = peak_rss_mb(proc.pid)
     stdout, stderr = stop_daemon(op, proc)
     n_msgs, span_s = log_statistics(log)
@@ -248,6 +300,8 @@ def main(argv: list[str] | None = None) -> int:
         "pose_hold_ms_p99": percentile(hold, 99),
         "pose_after_release_ms_p50": percentile(after, 50),
         "pose_after_release_ms_p99": percentile(after, 99),
+        "transport_ms_p50": percentile(floor.values[10:], 50),
+        "transport_ms_p99": percentile(floor.values[10:], 99),
         "poses_received": len(latencies.values),
         "mcap_messages": n_msgs,
         "mcap_messages_per_s": round(n_msgs / span_s, 1) if span_s > 0 else 0.0,
