@@ -4,27 +4,26 @@ cooperative constraints of eq. (5); ``localization.contractors.contract_range_be
 over ``localization.polar.contract_polar``) on Python floats instead of numpy arrays.
 
 :func:`contract_range_bearing` is one pass of ``polar.contract_polar`` fused into one
-function on bare floats: the meets, sums, differences and products by cos and sin
-written out in place, the other operations of ``localization.interval_scalar`` on
-separate ends (``localization.polar_scalar``: sqr and its backward form, backward
+function on bare floats over ``localization.polar_scalar``, which holds the operations
+of ``localization.interval_scalar`` on separate interval ends (meets of sums and
+differences, products by cos and sin, sqr and its backward form, backward
 multiplication, cos and sin sharing their argument reduction, bearing, the angle meet,
 the quadrant cone), all with the same outward rounding (one ``math.nextafter`` per
 computed bound, libm's periodic functions widened by ``TRANS_MARGIN``, tan by
-``_TAN_MARGIN``). Where an operation's checks are provably idle here (emptiness of
-operands already met, NaN of products of finite numbers) they are left out; where the
-extremes of a product follow from its operands' signs only that corner is computed
-(rounding is monotone, and ``nextafter`` maps -0.0 and 0.0 to the same bound). The boxes
-are the same bits as the op-by-op formulation's (``tests/cp_scalar_ref.py``, the code up
-to e943582), so the array path's up to libm's last bit (math.cos may differ from numpy's
-cos by an ulp, far inside the margin), and as sound.
+``_TAN_MARGIN``). Checks that are provably idle here (emptiness of operands already
+met, NaN of products of finite numbers) are left out, and cos, sin and squares are not
+recomputed when their operand kept its values. The boxes are the same bits as the
+op-by-op formulation's (``tests/cp_scalar_ref.py``, the code up to e943582), so the
+array path's up to libm's last bit (math.cos may differ from numpy's cos by an ulp, far
+inside the margin), and as sound.
 
 The fast path covers the common case only: finite boxes within +-1e100 (so no bound
 overflows), narrow angle meets, and no interval proven empty along the way. Anything
 else raises :class:`Fallback`, and the caller (``SlidingWindowCP.relative``) runs the
 array path, which handles every case; the fallback decides nothing by itself, so the
 results never depend on which path ran beyond libm's rounding.
-``tests/test_cp_scalar.py`` checks the path against the op-by-op formulation, the array
-path and sampled feasible points.
+``tests/test_polar_scalar.py`` checks the path against the op-by-op formulation bit for
+bit, ``tests/test_cp_scalar.py`` against the array path and sampled feasible points.
 """
 
 from __future__ import annotations
@@ -51,7 +50,10 @@ from localization.polar_scalar import (
     bwd_sqr_f,
     cone_f,
     cos_sin_f,
+    meet_add_f,
     meet_angle_f,
+    meet_polar_f,
+    meet_sub_f,
     sqr_f,
 )
 
@@ -90,45 +92,18 @@ def contract_range_bearing(
     dxl, dxh = nx(xjl - xih, -inf), nx(xjh - xil, inf)
     dyl, dyh = nx(yjl - yih, -inf), nx(yjh - yil, inf)
     al, ah = nx(tl + bl, -inf), nx(th + bh, inf)
-    cl, ch, sl, sh = cos_sin_f(al, ah)
-    # dx &= rho cos(alpha), dy &= rho sin(alpha): rho >= 0, so the product's extremes
-    v = nx(rl * cl if cl >= 0.0 else rh * cl, -inf)
-    dxl = dxl if dxl > v else v
-    v = nx(rh * ch if ch >= 0.0 else rl * ch, inf)
-    dxh = dxh if dxh < v else v
-    v = nx(rl * sl if sl >= 0.0 else rh * sl, -inf)
-    dyl = dyl if dyl > v else v
-    v = nx(rh * sh if sh >= 0.0 else rl * sh, inf)
-    dyh = dyh if dyh < v else v
-    if not (dxl <= dxh and dyl <= dyh):
-        raise Fallback
+    cs = cos_sin_f(al, ah)
+    dxl, dxh, dyl, dyh = meet_polar_f(dxl, dxh, dyl, dyh, rl, rh, cs)
     # r2 = rho^2 & (dx^2 + dy^2); dx, dy, rho backward through the squares
     ql, qh = sqr_f(rl, rh)
     xsl, xsh = sqr_f(dxl, dxh)
     ysl, ysh = sqr_f(dyl, dyh)
-    v = nx(xsl + ysl, -inf)
-    r2l = ql if ql > v else v
-    v = nx(xsh + ysh, inf)
-    r2h = qh if qh < v else v
-    if not r2l <= r2h:
-        raise Fallback
-    v = nx(r2l - ysh, -inf)
-    zl = xsl if xsl > v else v
-    v = nx(r2h - ysl, inf)
-    zh = xsh if xsh < v else v
-    if not zl <= zh:
-        raise Fallback
-    ndxl, ndxh = bwd_sqr_f(zl, zh, dxl, dxh)
+    r2l, r2h = meet_add_f(ql, qh, xsl, xsh, ysl, ysh)
+    ndxl, ndxh = bwd_sqr_f(*meet_sub_f(xsl, xsh, r2l, r2h, ysl, ysh), dxl, dxh)
     if ndxl != dxl or ndxh != dxh:  # x^2 depends on the values only
         dxl, dxh = ndxl, ndxh
         xsl, xsh = sqr_f(dxl, dxh)
-    v = nx(r2l - xsh, -inf)
-    zl = ysl if ysl > v else v
-    v = nx(r2h - xsl, inf)
-    zh = ysh if ysh < v else v
-    if not zl <= zh:
-        raise Fallback
-    dyl, dyh = bwd_sqr_f(zl, zh, dyl, dyh)
+    dyl, dyh = bwd_sqr_f(*meet_sub_f(ysl, ysh, r2l, r2h, xsl, xsh), dyl, dyh)
     rl, rh = bwd_sqr_f(r2l, r2h, rl, rh)
     if not (rl <= 0.0 <= rh and dxl <= 0.0 <= dxh and dyl <= 0.0 <= dyh):
         b0, b1 = bearing_f(dyl, dyh, dxl, dxh)
@@ -137,51 +112,18 @@ def contract_range_bearing(
             raise Fallback
         if nal != al or nah != ah:  # cos and sin depend on the values only
             al, ah = nal, nah
-            cl, ch, sl, sh = cos_sin_f(al, ah)
+            cs = cos_sin_f(al, ah)
     dxl, dxh, dyl, dyh = cone_f(dxl, dxh, dyl, dyh, al, ah)
-    v = nx(rl * cl if cl >= 0.0 else rh * cl, -inf)
-    dxl = dxl if dxl > v else v
-    v = nx(rh * ch if ch >= 0.0 else rl * ch, inf)
-    dxh = dxh if dxh < v else v
-    v = nx(rl * sl if sl >= 0.0 else rh * sl, -inf)
-    dyl = dyl if dyl > v else v
-    v = nx(rh * sh if sh >= 0.0 else rl * sh, inf)
-    dyh = dyh if dyh < v else v
-    if not (dxl <= dxh and dyl <= dyh):
-        raise Fallback
-    rl, rh = bwd_mul_f(dxl, dxh, rl, rh, cl, ch)
-    rl, rh = bwd_mul_f(dyl, dyh, rl, rh, sl, sh)
+    dxl, dxh, dyl, dyh = meet_polar_f(dxl, dxh, dyl, dyh, rl, rh, cs)
+    rl, rh = bwd_mul_f(dxl, dxh, rl, rh, cs[0], cs[1])
+    rl, rh = bwd_mul_f(dyl, dyh, rl, rh, cs[2], cs[3])
     # back to the operands: thi, beta from alpha; xi, yi, xj, yj from dx, dy
-    v = nx(al - bh, -inf)
-    tl = tl if tl > v else v
-    v = nx(ah - bl, inf)
-    th = th if th < v else v
-    if not tl <= th:
-        raise Fallback
-    v = nx(al - th, -inf)
-    bl = bl if bl > v else v
-    v = nx(ah - tl, inf)
-    bh = bh if bh < v else v
-    v = nx(xjl - dxh, -inf)
-    xil = xil if xil > v else v
-    v = nx(xjh - dxl, inf)
-    xih = xih if xih < v else v
-    v = nx(yjl - dyh, -inf)
-    yil = yil if yil > v else v
-    v = nx(yjh - dyl, inf)
-    yih = yih if yih < v else v
-    if not (bl <= bh and xil <= xih and yil <= yih):
-        raise Fallback
-    v = nx(xil + dxl, -inf)
-    xjl = xjl if xjl > v else v
-    v = nx(xih + dxh, inf)
-    xjh = xjh if xjh < v else v
-    v = nx(yil + dyl, -inf)
-    yjl = yjl if yjl > v else v
-    v = nx(yih + dyh, inf)
-    yjh = yjh if yjh < v else v
-    if not (xjl <= xjh and yjl <= yjh):
-        raise Fallback
+    tl, th = meet_sub_f(tl, th, al, ah, bl, bh)
+    bl, bh = meet_sub_f(bl, bh, al, ah, tl, th)
+    xil, xih = meet_sub_f(xil, xih, xjl, xjh, dxl, dxh)
+    yil, yih = meet_sub_f(yil, yih, yjl, yjh, dyl, dyh)
+    xjl, xjh = meet_add_f(xjl, xjh, xil, xih, dxl, dxh)
+    yjl, yjh = meet_add_f(yjl, yjh, yil, yih, dyl, dyh)
     return (xil, xih), (yil, yih), (tl, th), (xjl, xjh), (yjl, yjh), (rl, rh), (bl, bh)
 
 

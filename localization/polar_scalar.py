@@ -1,8 +1,9 @@
 """Interval operations of the polar contractor on bare floats, for the fused scalar
-range-bearing contraction (``localization.cp_scalar.contract_range_bearing``): cos and
-sin of one interval sharing their argument reduction, the square and its backward form,
-backward multiplication, the bearing of a box, the narrow angle meet, and the quadrant
-cone of ``localization.polar.cone``. Each takes and returns interval ends as separate
+range-bearing contraction (``localization.cp_scalar.contract_range_bearing``): meets
+of a sum or a difference, the meet of dx, dy with rho cos, rho sin, cos and sin of one
+interval sharing their argument reduction, the square and its backward form, backward
+multiplication, the bearing of a box, the narrow angle meet, and the quadrant cone of
+``localization.polar.cone``. Each takes and returns interval ends as separate
 floats (no tuples per operand) and is ``localization.interval_scalar``'s operation (or
 ``polar``'s, op by op) with the same outward rounding: one ``math.nextafter`` per
 computed bound, libm's periodic functions widened by ``TRANS_MARGIN``, tan by
@@ -30,11 +31,13 @@ from localization.interval_scalar import (
     Fallback,
     Iv,
     _nx,
+    bearing,
     bwd_mul,
     meet_angle_s,
 )
 from localization.interval_trig import _RED_EPS, TRANS_MARGIN, TWO_PI
 
+Cs = tuple[float, float, float, float]  # cos's and sin's bounds of one interval
 _NARROW = TWO_PI - 1e-6  # meet_angle_s's narrow case: widths summing below a turn
 _TAN_DOWN, _TAN_UP = 1.0 - _TAN_MARGIN, 1.0 + _TAN_MARGIN
 _TWO_PI_HI2 = 2.0 * _PI_HI
@@ -53,7 +56,7 @@ def _arc(start: float) -> tuple[float, float, float, float]:
 _ARCS = tuple(_arc(s) for s in (0.0, 0.5, 1.0, 1.5))
 
 
-def cos_sin_f(lo: float, hi: float) -> tuple[float, float, float, float]:
+def cos_sin_f(lo: float, hi: float) -> Cs:
     """``interval_scalar.cos`` and ``sin`` of a finite non-empty [lo, hi]: (cos's lower
     and upper bound, sin's lower and upper bound), the argument reduced once. An extremum
     2 k pi + phase lies in [a, b] iff floor(b') >= a' (a', b' = a, b over 2 pi): the same
@@ -65,29 +68,45 @@ def cos_sin_f(lo: float, hi: float) -> tuple[float, float, float, float]:
     r = _atan2(u1, v1)
     a = r - _RED_EPS
     b = r + w + _RED_EPS
-    if _floor(b / TWO_PI) >= a / TWO_PI:
-        chi = 1.0
-    else:
-        chi = (v2 if v2 > v1 else v1) + TRANS_MARGIN
-        chi = 1.0 if chi > 1.0 else chi
-    if _floor((b - math.pi) / TWO_PI) >= (a - math.pi) / TWO_PI:
-        clo = -1.0
-    else:
-        clo = (v2 if v2 < v1 else v1) - TRANS_MARGIN
-        clo = -1.0 if clo < -1.0 else clo
-    a -= _HALF_PI_PHASE
-    b -= _HALF_PI_PHASE
-    if _floor(b / TWO_PI) >= a / TWO_PI:
-        shi = 1.0
-    else:
-        shi = (u2 if u2 > u1 else u1) + TRANS_MARGIN
-        shi = 1.0 if shi > 1.0 else shi
-    if _floor((b - math.pi) / TWO_PI) >= (a - math.pi) / TWO_PI:
-        slo = -1.0
-    else:
-        slo = (u2 if u2 < u1 else u1) - TRANS_MARGIN
-        slo = -1.0 if slo < -1.0 else slo
+    clo, chi = _periodic_ends(a, b, v1, v2)
+    slo, shi = _periodic_ends(a - _HALF_PI_PHASE, b - _HALF_PI_PHASE, u1, u2)
     return clo, chi, slo, shi
+
+
+def _periodic_ends(a: float, b: float, v1: float, v2: float) -> tuple[float, float]:
+    """``_periodic``'s bounds from the reduced arc [a, b] (the phase taken off) and the
+    values ``v1``, ``v2`` at the interval's ends: 1 where a maximum 2 k pi lies in the arc,
+    -1 where a minimum 2 k pi + pi does, else the values widened by ``TRANS_MARGIN``."""
+    if _floor(b / TWO_PI) >= a / TWO_PI:
+        hi = 1.0
+    else:
+        hi = (v2 if v2 > v1 else v1) + TRANS_MARGIN
+        hi = 1.0 if hi > 1.0 else hi
+    if _floor((b - math.pi) / TWO_PI) >= (a - math.pi) / TWO_PI:
+        return -1.0, hi
+    lo = (v2 if v2 < v1 else v1) - TRANS_MARGIN
+    return (-1.0 if lo < -1.0 else lo), hi
+
+
+def meet_polar_f(
+    dxl: float, dxh: float, dyl: float, dyh: float, rl: float, rh: float, cs: Cs
+) -> tuple[float, float, float, float]:
+    """dx & rho cos(alpha), dy & rho sin(alpha) for rho = [rl, rh] >= 0 and ``cs`` =
+    :func:`cos_sin_f` of alpha (``interval_scalar.mul`` and ``meet_ne``: with rho >= 0 the
+    product's extremes are the corners the cos and sin bounds' signs select);
+    :class:`Fallback` on an empty result."""
+    cl, ch, sl, sh = cs
+    v = _nx(rl * cl if cl >= 0.0 else rh * cl, -_INF)
+    dxl = dxl if dxl > v else v
+    v = _nx(rh * ch if ch >= 0.0 else rl * ch, _INF)
+    dxh = dxh if dxh < v else v
+    v = _nx(rl * sl if sl >= 0.0 else rh * sl, -_INF)
+    dyl = dyl if dyl > v else v
+    v = _nx(rh * sh if sh >= 0.0 else rl * sh, _INF)
+    dyh = dyh if dyh < v else v
+    if not (dxl <= dxh and dyl <= dyh):
+        raise Fallback
+    return dxl, dxh, dyl, dyh
 
 
 def sqr_f(lo: float, hi: float) -> tuple[float, float]:
@@ -121,6 +140,34 @@ def bwd_sqr_f(zl: float, zh: float, xl: float, xh: float) -> tuple[float, float]
     raise Fallback
 
 
+def meet_sub_f(
+    xl: float, xh: float, al: float, ah: float, bl: float, bh: float
+) -> tuple[float, float]:
+    """x & (a - b) for non-empty a, b (``interval_scalar.meet_ne`` of ``sub``);
+    :class:`Fallback` on an empty result."""
+    v = _nx(al - bh, -_INF)
+    lo = xl if xl > v else v
+    v = _nx(ah - bl, _INF)
+    hi = xh if xh < v else v
+    if not lo <= hi:
+        raise Fallback
+    return lo, hi
+
+
+def meet_add_f(
+    xl: float, xh: float, al: float, ah: float, bl: float, bh: float
+) -> tuple[float, float]:
+    """x & (a + b) for non-empty a, b (``interval_scalar.meet_ne`` of ``add``);
+    :class:`Fallback` on an empty result."""
+    v = _nx(al + bl, -_INF)
+    lo = xl if xl > v else v
+    v = _nx(ah + bh, _INF)
+    hi = xh if xh < v else v
+    if not lo <= hi:
+        raise Fallback
+    return lo, hi
+
+
 def bwd_mul_f(zl: float, zh: float, xl: float, xh: float, yl: float, yh: float) -> Iv:
     """``interval_scalar.bwd_mul``: [xl, xh] under z = x * y, all non-empty;
     :class:`Fallback` on an empty result. For y without 0, z / y's extremes by sign."""
@@ -148,7 +195,7 @@ def bearing_f(yl: float, yh: float, xl: float, xh: float) -> Iv:
     if xl < 0.0 < xh and yl < 0.0 < yh:
         return -_PI_HI, _PI_HI
     if (yl == 0.0 or yh == 0.0) and (xl == 0.0 or xh == 0.0):
-        return _bearing_origin(yl, yh, xl, xh)  # a corner at the origin: left out
+        return bearing((yl, yh), (xl, xh))  # a corner at the origin: left out
     c1, c2, c3, c4 = _atan2(yl, xl), _atan2(yl, xh), _atan2(yh, xl), _atan2(yh, xh)
     cut = xl < 0.0 and yl < 0.0 and yh >= 0.0
     if cut:
@@ -166,22 +213,6 @@ def bearing_f(yl: float, yh: float, xl: float, xh: float) -> Iv:
     hi += TRANS_MARGIN
     floor, ceil = (0.0, _TWO_PI_HI2) if cut else (-_PI_HI, _PI_HI)
     return (floor if floor > lo else lo), (ceil if ceil < hi else hi)
-
-
-def _bearing_origin(yl: float, yh: float, xl: float, xh: float) -> Iv:
-    cut = xl < 0.0 and yl < 0.0 and yh >= 0.0
-    cs = []
-    for yy in (yl, yh):
-        for xx in (xl, xh):
-            if yy == 0.0 and xx == 0.0:
-                continue
-            c = _atan2(yy, xx)
-            cs.append(c + TWO_PI if cut and c <= 0.0 else c)
-    if not cs:
-        return -_PI_HI, _PI_HI
-    lo = max(min(cs) - TRANS_MARGIN, 0.0 if cut else -_PI_HI)
-    hi = min(max(cs) + TRANS_MARGIN, _TWO_PI_HI2 if cut else _PI_HI)
-    return lo, hi
 
 
 def meet_angle_f(bl: float, bh: float, zl: float, zh: float, wb: float, wz: float) -> Iv:
