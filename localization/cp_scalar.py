@@ -22,7 +22,7 @@ overflows), narrow angle meets, and no interval proven empty along the way. Anyt
 else raises :class:`Fallback`, and the caller (``SlidingWindowCP.relative``) runs the
 array path, which handles every case; the fallback decides nothing by itself, so the
 results never depend on which path ran beyond libm's rounding.
-``tests/test_polar_scalar.py`` checks the path against the op-by-op formulation bit for
+``tests/test_cp_scalar_bits.py`` checks the path against the op-by-op formulation bit for
 bit, ``tests/test_cp_scalar.py`` against the array path and sampled feasible points.
 """
 
