@@ -17,8 +17,8 @@ range-bearing measurements to other robots whose own boxes arrive over the bus.
 - ``localization.cp_window``: the array-level API (states, GPS, headings, position
   boxes, range-bearing to peers; prediction between solves);
 - ``localization.cp_scalar``: the one-box contraction against peers on floats (the
-  daemon's case, one box per step; same bounds as the array path, which it falls back
-  to); ``SlidingWindowCP.scalar_path = False`` forces the array paths everywhere;
+  daemon's case, one box per step; fused over ``localization.polar_scalar``; same bounds
+  as the array path, which it falls back to); ``SlidingWindowCP.scalar_path = False`` forces the array paths everywhere;
 - here: :class:`CPLocalizer`, which turns messages into those calls, keeps the peers'
   latest boxes, and reports boxes as messages.
 

@@ -1,165 +1,130 @@
 """Scalar fast path of the cooperative contraction for one box (the daemon's case, one
 robot's latest pose): the range-bearing contractor to peers (ekf-vs-cp.txt §2.4, the
 cooperative constraints of eq. (5); ``localization.contractors.contract_range_bearing``
-over ``localization.polar.contract_polar``) on Python floats instead of numpy arrays (the operations on one interval are
-``localization.interval_scalar``).
+over ``localization.polar.contract_polar``) on Python floats instead of numpy arrays.
 
-An interval is a pair ``(lo, hi)`` of floats. Every operation is the one of
-``localization.interval_arith`` / ``localization.interval_trig`` written for one
-interval, with the same outward rounding: one ``math.nextafter`` per computed bound,
-libm's periodic functions widened by ``TRANS_MARGIN``, tan by ``_TAN_MARGIN``. The
-results are therefore the array path's up to libm's last bit (math.cos may differ from
-numpy's cos by an ulp, far inside the margin), and as sound.
+:func:`contract_range_bearing` is one pass of ``polar.contract_polar`` fused into one
+function on bare floats over ``localization.polar_scalar``, which holds the operations
+of ``localization.interval_scalar`` on separate interval ends (meets of sums and
+differences, products by cos and sin, sqr and its backward form, backward
+multiplication, cos and sin sharing their argument reduction, bearing, the angle meet,
+the quadrant cone), all with the same outward rounding (one ``math.nextafter`` per
+computed bound, libm's periodic functions widened by ``TRANS_MARGIN``, tan by
+``_TAN_MARGIN``). Checks that are provably idle here (emptiness of operands already
+met, NaN of products of finite numbers) are left out, and cos, sin and squares are not
+recomputed when their operand kept its values. The boxes are the same bits as the
+op-by-op formulation's (``tests/cp_scalar_ref.py``, the code up to e943582), so the
+array path's up to libm's last bit (math.cos may differ from numpy's cos by an ulp, far
+inside the margin), and as sound.
 
-The fast path covers the common case only: finite boxes, narrow angle meets, and no
-interval proven empty along the way. Anything else raises :class:`Fallback`, and the
-caller (``SlidingWindowCP.relative``) runs the array path, which handles every case;
-the fallback decides nothing by itself, so the results never depend on which path ran
-beyond libm's rounding. ``tests/test_cp_scalar.py`` checks the path against the array
-path and against sampled feasible points.
+The fast path covers the common case only: finite boxes within +-1e100 (so no bound
+overflows), narrow angle meets, and no interval proven empty along the way. Anything
+else raises :class:`Fallback`, and the caller (``SlidingWindowCP.relative``) runs the
+array path, which handles every case; the fallback decides nothing by itself, so the
+results never depend on which path ran beyond libm's rounding.
+``tests/test_cp_scalar_bits.py`` checks the path against the op-by-op formulation bit for
+bit, ``tests/test_cp_scalar.py`` against the array path and sampled feasible points.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from localization.interval_scalar import (
-    _EMPTY,
-    _HALF_PI_HI,
-    _HALF_PI_LO,
     _INF,
-    _PI_HI,
-    _PI_LO,
-    _POS,
-    _TAN_MARGIN,
-    _TWO_PI_C,
-    _TWO_PI_IV,
     Fallback,
     Iv,
     _e,
     _nx,
     add,
-    bearing,
-    bwd_mul,
-    bwd_sqr,
     cos,
     div,
-    hull,
-    meet,
-    meet_angle_s,
-    meet_ne,
     mul,
-    neg,
     sin,
     sinc_half,
-    sqr,
     sub,
 )
-from localization.interval_trig import TWO_PI
+from localization.polar_scalar import (
+    bearing_f,
+    bwd_mul_f,
+    bwd_sqr_f,
+    cone_f,
+    cos_sin_f,
+    meet_add_f,
+    meet_angle_f,
+    meet_polar_f,
+    meet_sub_f,
+    sqr_f,
+)
 
-
-def _quadrant_angles(alpha: Iv, start: float) -> Iv:
-    """``polar._quadrant_angles`` for one interval."""
-    s_lo, s_hi = start * _PI_LO, (start + 0.5) * _PI_HI
-    arc = (_nx(s_lo, -_INF), _nx(s_hi, _INF))
-    a = meet_angle_s(alpha, arc)
-    if _e(a):
-        return _EMPTY
-    if not (_nx(a[1] - a[0], _INF) < np.pi):
-        return arc
-    k = float(round((0.5 * a[0] + 0.5 * a[1] - 0.5 * (s_lo + s_hi)) / TWO_PI))
-    return meet(sub(a, mul((k, k), _TWO_PI_IV)), arc)
-
-
-def _to_q1(t: Iv, start: float) -> Iv:
-    if start == 0.0:
-        return t
-    if start == 0.5:
-        return sub((_PI_LO, _PI_HI), t)
-    if start == 1.0:
-        return sub(t, (_PI_LO, _PI_HI))
-    return neg(sub(t, _TWO_PI_C))
-
-
-def _tan_q1(t: Iv) -> Iv:
-    lo = min(max(t[0], 0.0), _HALF_PI_LO)
-    hi = min(max(t[1], 0.0), _HALF_PI_HI)
-    t_lo = max(math.tan(lo) * (1.0 - _TAN_MARGIN), 0.0)
-    t_hi = _INF if hi >= _HALF_PI_LO else math.tan(hi) * (1.0 + _TAN_MARGIN)
-    return (t_lo, t_hi) if t_lo <= t_hi else _EMPTY
-
-
-_QUADRANTS = ((1.0, 1.0, 0.0), (-1.0, 1.0, 0.5), (-1.0, -1.0, 1.0), (1.0, -1.0, 1.5))
-
-
-def cone(dx: Iv, dy: Iv, alpha: Iv) -> tuple[Iv, Iv]:
-    """``polar.cone`` for one box."""
-    out_x = out_y = None
-    for sx, sy, start in _QUADRANTS:
-        px = meet(dx if sx > 0 else neg(dx), _POS)
-        py = meet(dy if sy > 0 else neg(dy), _POS)
-        if _e(px) or _e(py):
-            continue
-        ang = _quadrant_angles(alpha, start)
-        if _e(ang):
-            continue
-        t = _to_q1(ang, start)
-        tan_t = _tan_q1(t) if not _e(t) else _EMPTY
-        qy = meet(py, mul(px, tan_t))
-        qx = meet(px, div(py, tan_t))
-        if _e(qx) or _e(qy) or _e(t):
-            qx = qy = _EMPTY
-        qx, qy = (qx if sx > 0 else neg(qx)), (qy if sy > 0 else neg(qy))
-        out_x = qx if out_x is None else hull(out_x, qx)
-        out_y = qy if out_y is None else hull(out_y, qy)
-    if out_x is None or out_y is None:
-        raise Fallback
-    return meet_ne(dx, out_x), meet_ne(dy, out_y)
-
-
-def contract_polar(dx: Iv, dy: Iv, rho: Iv, alpha: Iv) -> tuple[Iv, Iv, Iv, Iv]:
-    """One pass of ``polar.contract_polar`` for rho >= 0 (a range); :class:`Fallback` on
-    an empty result."""
-    cal, sal = cos(alpha), sin(alpha)
-    dx = meet_ne(dx, mul(rho, cal))
-    dy = meet_ne(dy, mul(rho, sal))
-    r2 = meet_ne(sqr(rho), add(sqr(dx), sqr(dy)))
-    dx = bwd_sqr(meet(sqr(dx), sub(r2, sqr(dy))), dx)
-    dy = bwd_sqr(meet(sqr(dy), sub(r2, sqr(dx))), dy)
-    rho = bwd_sqr(r2, rho)
-    if _e(dx) or _e(dy) or _e(rho):
-        raise Fallback
-    free = rho[0] <= 0.0 <= rho[1] and dx[0] <= 0.0 <= dx[1] and dy[0] <= 0.0 <= dy[1]
-    if not free:
-        alpha = meet_angle_s(alpha, bearing(dy, dx))
-        if _e(alpha):
-            raise Fallback
-    dx, dy = cone(dx, dy, alpha)
-    cal, sal = cos(alpha), sin(alpha)
-    dx = meet_ne(dx, mul(rho, cal))
-    dy = meet_ne(dy, mul(rho, sal))
-    rho = bwd_mul(dx, rho, cal)
-    rho = bwd_mul(dy, rho, sal)
-    if _e(rho):
-        raise Fallback
-    return dx, dy, rho, alpha
+_BIG = 1e100  # bounds beyond: Fallback (squares and products then stay finite)
 
 
 def contract_range_bearing(
     xi: Iv, yi: Iv, thi: Iv, xj: Iv, yj: Iv, rho: Iv, beta: Iv
 ) -> tuple[Iv, Iv, Iv, Iv, Iv, Iv, Iv]:
-    """``contractors.contract_range_bearing`` (one polar pass) for one box."""
-    rho = meet_ne(rho, _POS)
-    dx, dy, rho, alpha = contract_polar(sub(xj, xi), sub(yj, yi), rho, add(thi, beta))
-    thi = meet_ne(thi, sub(alpha, beta))
-    beta = meet_ne(beta, sub(alpha, thi))
-    xi = meet_ne(xi, sub(xj, dx))
-    yi = meet_ne(yi, sub(yj, dy))
-    xj = meet_ne(xj, add(xi, dx))
-    yj = meet_ne(yj, add(yi, dy))
-    return xi, yi, thi, xj, yj, rho, beta
+    """``contractors.contract_range_bearing`` (one polar pass) for one box: the same
+    bits as ``tests/cp_scalar_ref.py``'s op-by-op formulation; :class:`Fallback` on an
+    empty, unbounded or NaN operand, a bound beyond +-1e100, or an empty result."""
+    xil, xih = xi
+    yil, yih = yi
+    tl, th = thi
+    xjl, xjh = xj
+    yjl, yjh = yj
+    rl, rh = rho
+    bl, bh = beta
+    big = _BIG
+    if not (
+        -big <= xil <= xih <= big
+        and -big <= yil <= yih <= big
+        and -big <= tl <= th <= big
+        and -big <= xjl <= xjh <= big
+        and -big <= yjl <= yjh <= big
+        and -big <= rl <= rh <= big
+        and -big <= bl <= bh <= big
+    ):
+        raise Fallback
+    nx, inf = _nx, _INF
+    rl = rl if rl > 0.0 else 0.0  # rho >= 0 (a range)
+    if not rl <= rh:
+        raise Fallback
+    # polar.contract_polar(xj - xi, yj - yi, rho, thi + beta)
+    dxl, dxh = nx(xjl - xih, -inf), nx(xjh - xil, inf)
+    dyl, dyh = nx(yjl - yih, -inf), nx(yjh - yil, inf)
+    al, ah = nx(tl + bl, -inf), nx(th + bh, inf)
+    cs = cos_sin_f(al, ah)
+    dxl, dxh, dyl, dyh = meet_polar_f(dxl, dxh, dyl, dyh, rl, rh, cs)
+    # r2 = rho^2 & (dx^2 + dy^2); dx, dy, rho backward through the squares
+    ql, qh = sqr_f(rl, rh)
+    xsl, xsh = sqr_f(dxl, dxh)
+    ysl, ysh = sqr_f(dyl, dyh)
+    r2l, r2h = meet_add_f(ql, qh, xsl, xsh, ysl, ysh)
+    ndxl, ndxh = bwd_sqr_f(*meet_sub_f(xsl, xsh, r2l, r2h, ysl, ysh), dxl, dxh)
+    if ndxl != dxl or ndxh != dxh:  # x^2 depends on the values only
+        dxl, dxh = ndxl, ndxh
+        xsl, xsh = sqr_f(dxl, dxh)
+    dyl, dyh = bwd_sqr_f(*meet_sub_f(ysl, ysh, r2l, r2h, xsl, xsh), dyl, dyh)
+    rl, rh = bwd_sqr_f(r2l, r2h, rl, rh)
+    if not (rl <= 0.0 <= rh and dxl <= 0.0 <= dxh and dyl <= 0.0 <= dyh):
+        b0, b1 = bearing_f(dyl, dyh, dxl, dxh)
+        nal, nah = meet_angle_f(al, ah, b0, b1, nx(ah - al, inf), nx(b1 - b0, inf))
+        if not nal <= nah:
+            raise Fallback
+        if nal != al or nah != ah:  # cos and sin depend on the values only
+            al, ah = nal, nah
+            cs = cos_sin_f(al, ah)
+    dxl, dxh, dyl, dyh = cone_f(dxl, dxh, dyl, dyh, al, ah)
+    dxl, dxh, dyl, dyh = meet_polar_f(dxl, dxh, dyl, dyh, rl, rh, cs)
+    rl, rh = bwd_mul_f(dxl, dxh, rl, rh, cs[0], cs[1])
+    rl, rh = bwd_mul_f(dyl, dyh, rl, rh, cs[2], cs[3])
+    # back to the operands: thi, beta from alpha; xi, yi, xj, yj from dx, dy
+    tl, th = meet_sub_f(tl, th, al, ah, bl, bh)
+    bl, bh = meet_sub_f(bl, bh, al, ah, tl, th)
+    xil, xih = meet_sub_f(xil, xih, xjl, xjh, dxl, dxh)
+    yil, yih = meet_sub_f(yil, yih, yjl, yjh, dyl, dyh)
+    xjl, xjh = meet_add_f(xjl, xjh, xil, xih, dxl, dxh)
+    yjl, yjh = meet_add_f(yjl, yjh, yil, yih, dyl, dyh)
+    return (xil, xih), (yil, yih), (tl, th), (xjl, xjh), (yjl, yjh), (rl, rh), (bl, bh)
 
 
 def _width(a: Iv) -> float:
