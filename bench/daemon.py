@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import signal
 import subprocess
@@ -152,9 +153,19 @@ class TransportFloor:
         self.values.append((now - int(bytes(sample.payload))) * 1e-6)
 
     def close(self) -> None:
-        self.proc.terminate()
-        self.proc.wait(timeout=10)
-        self._session.close()
+        """Stop the pinger (killed if it does not go) and close the session; a pinger
+        that failed says so on stderr (its figures are then null)."""
+        try:
+            self.proc.terminate()
+            try:
+                _, err = self.proc.communicate(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                _, err = self.proc.communicate(timeout=10)
+            if self.proc.returncode not in (0, -signal.SIGTERM) and err.strip():
+                print(f"transport pinger: {err.strip()[-500:]}", file=sys.stderr)
+        finally:
+            self._session.close()
 
 
 class PoseLatencies:
@@ -279,8 +290,10 @@ def main(argv: list[str] | None = None) -> int:
     if not wait_for_robot(op, proc):
         return 1
     floor = TransportFloor(free_tcp_port(), args.seconds + 5.0)
-    cpu, fcpu, elapsed = drive_tour(op, proc, latencies, args.seconds)
-    floor.close()
+    try:
+        cpu, fcpu, elapsed = drive_tour(op, proc, latencies, args.seconds)
+    finally:
+        floor.close()
     rss = peak_rss_mb(proc.pid)
     stdout, stderr = stop_daemon(op, proc)
     n_msgs, span_s = log_statistics(log)
@@ -313,7 +326,9 @@ def main(argv: list[str] | None = None) -> int:
         print(stderr.strip()[-1000:], file=sys.stderr)
     if tmp is not None:
         tmp.cleanup()
-    print(json.dumps(result))
+    # An undefined figure (no samples) is null, not JSON's missing NaN.
+    print(json.dumps({k: None if isinstance(v, float) and math.isnan(v) else v
+                      for k, v in result.items()}))  # fmt: skip
     return 0 if proc.returncode == 0 else 1
 
 

@@ -243,12 +243,13 @@ def association_config(cfg: RobotConfig) -> AssociationConfig:
 def motion_filter_config(cfg: RobotConfig) -> MotionFilterConfig:
     """Which scans the grid takes (mapping.motion_filter), from the robot config."""
     m = cfg.services.mapping
-    return MotionFilterConfig(m.min_travel_m, math.radians(m.min_turn_deg), m.max_interval_s)
+    return MotionFilterConfig(m.min_travel_m, math.radians(m.min_turn_deg), m.max_interval_s,
+                              m.motion_filter)  # fmt: skip
 
 
 class MappingAdapter:
     """IR grid mapping fed HeadingEstimate + IrScan; map output throttled by stamp. The
-    scans go through the motion filter first (``filter.dropped`` counts those it leaves out)."""
+    scans go through the motion filter first (it counts what it leaves out; :meth:`summary`)."""
 
     def __init__(self, cfg: RobotConfig) -> None:
         m = cfg.services.mapping
@@ -293,7 +294,7 @@ class MappingAdapter:
         self.scans += 1
         out: Outputs = []
         if not self.filter.keep(self.heading.pose, msg.stamp_ns):
-            pass  # (almost) where the last scan was taken: counted in filter.dropped
+            pass  # where the last scan was taken, or nowhere: counted by the filter
         elif self.da is not None:
             report = self.da.step(self.heading, msg)
             if report is not None:
@@ -307,6 +308,14 @@ class MappingAdapter:
             self._last_map_ns = msg.stamp_ns
             out.append(("map", self.map_msg(msg.stamp_ns)))
         return out
+
+    def summary(self) -> str:
+        """What became of the scans: mapped, left out by the motion filter, without a
+        pose to map them at, of a width that does not match the mounts."""
+        f = self.filter
+        return (f"{self.scans + self.mismatched} IR scans: {f.kept} mapped, {f.dropped} left "
+                f"out by the motion filter, {f.unplaced} without a finite pose, "
+                f"{self.mismatched} of the wrong width")  # fmt: skip
 
     def map_msg(self, stamp_ns: int) -> Any:
         return to_grid_msg(self.grid, stamp_ns, "map")

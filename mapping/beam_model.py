@@ -133,7 +133,10 @@ def distance_cells(free: np.ndarray) -> np.ndarray:
     time; it is also about twice as fast on the association's windows): its squared
     distances are sums of squared integer offsets, exact in its float32 below 2^24, and
     the square root is taken in float64, as scipy takes it. A field too large for that
-    (over 2,896 cells across) goes to scipy."""
+    (over 2,896 cells across) goes to scipy. ``free`` must hold at least one ``False``
+    cell (an obstacle; :meth:`FieldBeamModel.set_map` checks)."""
+    if free.all():
+        raise ValueError("distance_cells needs at least one obstacle (False) cell")
     rows, cols = free.shape
     if rows * rows + cols * cols >= 1 << 24:
         from scipy.ndimage import distance_transform_edt

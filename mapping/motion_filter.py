@@ -16,6 +16,10 @@ update distances. Here a scan is inserted when, since the last one inserted,
   moves in front of it, once a second instead of twenty times), or
 - it is the first.
 
+``enabled`` False maps every scan (the paper); a threshold of ``inf`` switches that
+trigger off. A scan whose pose is not finite is not placed anywhere: :meth:`keep` says
+no and counts it in ``unplaced`` (``kept + dropped + unplaced`` = the scans seen).
+
 Pure: poses and stamps in, a decision out (no clock).
 """
 
@@ -30,18 +34,19 @@ from numerics.angles import wrap
 
 @dataclass(frozen=True)
 class MotionFilterConfig:
-    """Thresholds of :class:`MotionFilter`; ``min_travel_m`` 0 inserts every scan (the
-    paper)."""
+    """Thresholds of :class:`MotionFilter` (each > 0; ``inf``: that trigger off);
+    ``enabled`` False inserts every scan (the paper)."""
 
     min_travel_m: float = 0.05
     min_turn_rad: float = math.radians(2.0)
     max_interval_s: float = 1.0
+    enabled: bool = True
 
     def __post_init__(self) -> None:
         for name in ("min_travel_m", "min_turn_rad", "max_interval_s"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"motion filter {name} must be finite and >= 0, got {v}")
+            if not v > 0:  # NaN too
+                raise ValueError(f"motion filter {name} must be > 0 (inf: off), got {v}")
 
 
 class MotionFilter:
@@ -52,15 +57,18 @@ class MotionFilter:
         self._last: tuple[float, float, float, int] | None = None
         self.kept = 0
         self.dropped = 0
+        self.unplaced = 0
 
     def keep(self, pose: Pose2D, stamp_ns: int) -> bool:
         """True if the scan taken at ``pose``, ``stamp_ns`` goes into the grid."""
         cfg = self.config
         last = self._last
         if not (math.isfinite(pose.x) and math.isfinite(pose.y) and math.isfinite(pose.theta)):
-            return True  # not a place to measure from: the grid's own check counts it
+            self.unplaced += 1  # nowhere to put it, nor to measure the next one from
+            return False
         take = (
-            last is None
+            not cfg.enabled
+            or last is None
             or math.hypot(pose.x - last[0], pose.y - last[1]) >= cfg.min_travel_m
             or abs(wrap(pose.theta - last[2])) >= cfg.min_turn_rad
             or (stamp_ns - last[3]) >= cfg.max_interval_s * 1e9

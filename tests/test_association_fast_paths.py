@@ -325,3 +325,8 @@ def test_the_distance_field_equals_scipys_bit_for_bit():
         assert got.dtype == np.float64 and got.shape == free.shape
         assert np.array_equal(got, want), free.shape
         assert np.array_equal((got * 0.05).astype(np.float32), (want * 0.05).astype(np.float32))
+    window = rng.random((300, 400)) >= 0.01
+    for view in (window[17:211, 33:301], window[::2, ::3], window.T, window[::-1, 5:]):
+        assert np.array_equal(distance_cells(view), distance_transform_edt(view))
+    with pytest.raises(ValueError, match="obstacle"):
+        distance_cells(np.ones((4, 4), dtype=bool))

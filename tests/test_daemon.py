@@ -160,6 +160,10 @@ def test_sigterm_exits_0_with_a_closed_log_of_every_topic(running):
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
     assert "stopped" in out
+    # what became of the IR scans: every one accounted for
+    line = next(x for x in out.splitlines() if x.startswith("hilnav run: mapping: "))
+    n = [int(w) for w in line.replace(",", " ").split() if w.isdigit()]
+    assert n[0] > 0 and n[0] == n[1] + n[2] + n[3] + n[4], line
     assert _wait(lambda: ("r1", False) in seen.alive, 5.0)
     counts: dict[str, int] = {}
     schemas: dict[str, str] = {}

@@ -34,20 +34,25 @@ def test_travel_turn_time_and_the_first_scan() -> None:
     assert (f.kept, f.dropped) == (4, 4)
 
 
-def test_a_clock_that_goes_back_and_a_pose_that_is_not_finite_are_not_dropped() -> None:
+def test_a_clock_that_goes_back_resets_and_a_pose_that_is_not_finite_is_counted() -> None:
     f = MotionFilter()
     assert f.keep(Pose2D(1.0, 1.0, 0.0), 10_000 * MS)
     assert f.keep(Pose2D(1.0, 1.0, 0.0), 5_000 * MS)  # a reset source: start again
     assert not f.keep(Pose2D(1.0, 1.0, 0.0), 5_100 * MS)
-    assert f.keep(Pose2D(math.nan, 1.0, 0.0), 5_200 * MS)  # the grid's own check counts it
+    for bad in (Pose2D(math.nan, 1.0, 0.0), Pose2D(1.0, math.inf, 0.0), Pose2D(1, 1, math.nan)):
+        assert not f.keep(bad, 9_000 * MS)  # nowhere to map it
     assert not f.keep(Pose2D(1.0, 1.0, 0.0), 5_300 * MS)  # measured from the last finite
+    assert (f.kept, f.dropped, f.unplaced) == (2, 2, 3)
 
 
-def test_zero_travel_maps_every_scan_and_bad_thresholds_are_refused() -> None:
-    f = MotionFilter(MotionFilterConfig(min_travel_m=0.0))
+def test_off_maps_every_scan_inf_switches_a_trigger_off_and_zero_is_refused() -> None:
+    f = MotionFilter(MotionFilterConfig(enabled=False))
     assert all(f.keep(Pose2D(0, 0, 0), i * MS) for i in range(20))
-    for bad in ({"min_travel_m": -0.01}, {"min_turn_rad": math.nan},
-                {"max_interval_s": math.inf}):  # fmt: skip
+    still = MotionFilter(MotionFilterConfig(max_interval_s=math.inf))
+    assert still.keep(Pose2D(0, 0, 0), 0)
+    assert not any(still.keep(Pose2D(0, 0, 0), i * 1000 * MS) for i in range(1, 20))
+    for bad in ({"min_travel_m": 0.0}, {"min_travel_m": -0.01}, {"min_turn_rad": math.nan},
+                {"max_interval_s": 0.0}):  # fmt: skip
         with pytest.raises(ValueError, match="motion filter"):
             MotionFilterConfig(**bad)
 
@@ -72,6 +77,20 @@ def test_the_mapping_service_maps_at_a_spacing_of_travel(association: bool) -> N
     assert a.filter.kept == 50 + 5  # every 4th scan moving (6 cm), then one a second
     if association:
         assert a.da is not None and len(a.da.trajectory) == a.filter.kept
-    every = MappingAdapter(parse_config({"services": {"mapping": {"min_travel_m": 0.0}}}))
+    assert a.summary().startswith(f"300 IR scans: {a.filter.kept} mapped, ")
+    every = MappingAdapter(parse_config({"services": {"mapping": {"motion_filter": False}}}))
     _feed(every, moving)
     assert every.filter.dropped == 0 and every.grid.updates > a.grid.updates > 0
+    with pytest.raises(ValueError, match="min_travel_m"):
+        parse_config({"services": {"mapping": {"min_travel_m": 0.0}}})
+    lazy = parse_config({"services": {"mapping": {"max_interval_s": 1e9}}})
+    assert motion_filter_config(lazy).max_interval_s == 1e9  # never by time
+
+
+def test_a_scan_without_a_finite_pose_is_counted_not_mapped() -> None:
+    """A heading estimate with a NaN pose (a filter that lost itself) must not reach the
+    grid (which refuses non-finite boxes): counted, and the service goes on."""
+    a = MappingAdapter(parse_config({"services": {"mapping": {"association": False}}}))
+    _feed(a, [Pose2D(0.0, 0.0, 0.0), Pose2D(math.nan, 0.0, 0.0), Pose2D(0.1, 0.0, 0.0)])
+    assert (a.filter.kept, a.filter.unplaced) == (2, 1) and a.grid.updates > 0
+    assert "1 without a finite pose" in a.summary()

@@ -82,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
         f"log {daemon.log_path}",
         flush=True,
     )
+    mapping = daemon.runtime.pipeline.mapping
+    if mapping is not None:
+        print(f"hilnav run: mapping: {mapping.summary()}", flush=True)
     return 0
 
 

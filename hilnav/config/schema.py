@@ -204,10 +204,12 @@ class MappingService:
     publish_every_s: float = field(default=2.0, metadata=_positive("2.0"))
     seed: int = 0
     # The motion filter (mapping.motion_filter): a scan goes into the grid after this
-    # much travel, or turn, or time since the last one; min_travel_m 0 maps every scan.
-    min_travel_m: float = field(default=0.05, metadata=_non_negative("0.05"))
-    min_turn_deg: float = field(default=2.0, metadata=_non_negative("2.0"))
-    max_interval_s: float = field(default=1.0, metadata=_non_negative("1.0"))
+    # much travel, or turn, or time since the last one (a huge value, e.g. 1e9, switches
+    # that trigger off); with motion_filter = false every scan goes in.
+    motion_filter: bool = True
+    min_travel_m: float = field(default=0.05, metadata=_positive("0.05"))
+    min_turn_deg: float = field(default=2.0, metadata=_positive("2.0"))
+    max_interval_s: float = field(default=1.0, metadata=_positive("1.0"))
 
 
 @dataclass(frozen=True)
