@@ -14,7 +14,8 @@ polar contractor (Desrochers & Jaulin 2016, ``codac.CtcPolar``). In pass order:
   < 0) over every 2*pi branch of alpha (``meet_angle``);
 - cone: dx x dy met with the cone of the directions alpha (+ pi where rho < 0), exactly
   per closed quadrant (there y = x tan t with tan monotone: y in x * [tan a, tan b],
-  x in y / [tan a, tan b]), the quadrants' results joined;
+  x in y / [tan a, tan b], except on the quadrant's edges: t = pi/2 holds any y on
+  x = 0, t = 0 any x on y = 0), the quadrants' results joined;
 
 rho may have any sign (rho < 0 is the direction alpha + pi); a range measurement meets
 rho with [0, inf) first. alpha is a real interval of any width (angles are not wrapped).
@@ -86,6 +87,19 @@ def _to_q1(t: IV, start: float) -> IV:
     return -(t - 2.0 * PI)
 
 
+def _slope_up(prod: IV, tan_t: IV) -> IV:
+    """x tan t as the cone needs it: at t = pi/2 (tan inf) the cone holds every y >= 0
+    on x = 0, which x * inf (0 * inf = 0 over the reals) would lose."""
+    return IV(prod.lo, np.where(tan_t.hi == _INF, _INF, prod.hi))
+
+
+def _slope_down(quot: IV, tan_t: IV) -> IV:
+    """y / tan t as the cone needs it: at t = 0 (tan 0) the cone holds every x >= 0 on
+    y = 0, which 0 / [0, b] = {0} and y / [0, 0] = empty would lose."""
+    z = tan_t.lo == 0.0
+    return IV(np.where(z & (tan_t.hi == 0.0), 0.0, quot.lo), np.where(z, _INF, quot.hi))
+
+
 def cone(dx: IV, dy: IV, alpha: IV) -> tuple[IV, IV]:
     """(dx, dy) met with the closed cone {r (cos t, sin t): r >= 0, t in alpha mod 2*pi}:
     the hull of the exact meets of each closed quadrant."""
@@ -99,8 +113,8 @@ def cone(dx: IV, dy: IV, alpha: IV) -> tuple[IV, IV]:
             continue  # so do the directions
         t = _to_q1(ang, start)
         tan_t = _tan_q1(t)
-        qy = py & (px * tan_t)
-        qx = px & (py / tan_t)
+        qy = py & _slope_up(px * tan_t, tan_t)
+        qx = px & _slope_down(py / tan_t, tan_t)
         dead = qx.is_empty() | qy.is_empty() | t.is_empty()
         qx = IV(np.where(dead, _INF, qx.lo), np.where(dead, -_INF, qx.hi))
         qy = IV(np.where(dead, _INF, qy.lo), np.where(dead, -_INF, qy.hi))

@@ -263,20 +263,26 @@ def _quadrant_f(
     tl = _tan(lo) * _TAN_DOWN
     tl = 0.0 if tl < 0.0 else tl
     th = _INF if hi >= _HALF_PI_LO else _tan(hi) * _TAN_UP
-    if not tl <= th or (tl == 0.0 and th == 0.0):
-        return None  # tan empty, or py / tan empty
-    # qy = py & px * tan (all >= 0: the product's extremes are its end products)
+    if not tl <= th:
+        return None  # tan empty
+    # qy = py & px * tan (all >= 0: the product's extremes are its end products); at
+    # t = pi/2 (tan inf) the cone holds every y >= 0 on x = 0 (polar._slope_up)
     v = _nx(pxl * tl, -_INF)
     qyl = pyl if pyl > v else v
-    v = pxh * th
-    v = _nx(0.0 if v != v else v, _INF)
-    qyh = pyh if pyh < v else v
-    # qx = px & py / tan
+    if th == _INF:
+        qyh = pyh
+    else:
+        v = pxh * th
+        v = _nx(0.0 if v != v else v, _INF)
+        qyh = pyh if pyh < v else v
+    # qx = px & py / tan; at t = 0 (tan 0) every x >= 0 on y = 0 (polar._slope_down)
     if pyl == 0.0 and pyh == 0.0:
-        dl = dh = 0.0
+        dl, dh = 0.0, (_INF if tl == 0.0 else 0.0)
+    elif th == 0.0:
+        dl, dh = 0.0, _INF
     else:
         dl = _nx(pyl / th, -_INF)
-        dh = _nx(pyh / tl if tl != 0.0 else _INF, _INF)
+        dh = _INF if tl == 0.0 else _nx(pyh / tl, _INF)
     qxl = pxl if pxl > dl else dl
     qxh = pxh if pxh < dh else dh
     if not (qxl <= qxh and qyl <= qyh):

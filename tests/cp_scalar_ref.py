@@ -1,7 +1,9 @@
 """The previous formulation of ``localization.cp_scalar.contract_range_bearing`` (up to
 e943582): ``polar.contract_polar`` written op by op over ``localization.interval_scalar``
-(one function call per interval operation). ``tests/test_cp_scalar.py`` checks the fused
-fast version against it bit for bit."""
+(one function call per interval operation), with the cone's edge rule added since
+(``polar._slope_up``, ``polar._slope_down``: t = pi/2 holds every y on x = 0, t = 0
+every x on y = 0). ``tests/test_cp_scalar_bits.py`` checks the fused fast version
+against it bit for bit."""
 
 from __future__ import annotations
 
@@ -90,8 +92,13 @@ def cone(dx: Iv, dy: Iv, alpha: Iv) -> tuple[Iv, Iv]:
             continue
         t = _to_q1(ang, start)
         tan_t = _tan_q1(t) if not _e(t) else _EMPTY
-        qy = meet(py, mul(px, tan_t))
-        qx = meet(px, div(py, tan_t))
+        prod, quot = mul(px, tan_t), div(py, tan_t)
+        if tan_t[1] == _INF:  # polar._slope_up: t = pi/2 holds every y on x = 0
+            prod = (prod[0], _INF)
+        if tan_t[0] == 0.0:  # polar._slope_down: t = 0 holds every x on y = 0
+            quot = (0.0 if tan_t[1] == 0.0 else quot[0], _INF)
+        qy = meet(py, prod)
+        qx = meet(px, quot)
         if _e(qx) or _e(qy) or _e(t):
             qx = qy = _EMPTY
         qx, qy = (qx if sx > 0 else neg(qx)), (qy if sy > 0 else neg(qy))

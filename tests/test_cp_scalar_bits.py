@@ -156,3 +156,47 @@ def test_cone_same_bits_as_polar_cone(dx, dy, alpha):
         return
     assert old is not None
     assert _same(new[:2], old[0]) and _same(new[2:], old[1])
+
+
+H = math.pi / 2
+# (dx, dy, alpha) boxes whose feasible points lie on a quadrant's edge (an axis), with one
+# such point (x, y, angle): the cone's x tan t and y / tan t lose them at t = 0 and
+# t = pi/2 (0 * inf, 0 / [0, b]) unless the edge is handled.
+EDGES = [
+    ((0.0, 0.0), (4.0, 6.0), (H - 0.1, H + 0.1), (0.0, 5.0, H)),
+    ((4.0, 6.0), (0.0, 0.0), (-0.1, 0.1), (5.0, 0.0, 0.0)),
+    ((2.0, 3.0), (0.0, 1.0), (0.0, 0.0), (2.5, 0.0, 0.0)),
+    ((-6.0, -4.0), (0.0, 0.0), (math.pi - 0.1, math.pi + 0.1), (-5.0, 0.0, math.pi)),
+    ((0.0, 0.0), (-6.0, -4.0), (-H - 0.1, -H + 0.1), (0.0, -5.0, -H)),
+    ((0.0, 0.0), (4.0, 6.0), (H, H), (0.0, 5.0, H)),
+    ((0.0, 1.0), (0.0, 0.0), (0.0, 0.3), (0.5, 0.0, 0.0)),
+]
+
+
+@pytest.mark.parametrize(("dx", "dy", "alpha", "point"), EDGES)
+def test_the_cone_keeps_points_on_a_quadrants_edge(dx, dy, alpha, point):
+    """Both paths (``polar.cone``/``contract_polar`` on arrays, ``polar_scalar.cone_f``
+    and the fused range-bearing contraction on floats) keep a feasible point on an axis,
+    and agree (the scalar path with its op-by-op reference bit for bit)."""
+    from localization import polar
+    from localization.interval import IV
+
+    x, y, a = point
+    r = math.hypot(x, y)
+    iv = [IV.of(np.array([lo]), np.array([hi])) for lo, hi in (dx, dy, alpha)]
+    cx, cy = polar.cone(*iv)
+    assert cx.lo[0] <= x <= cx.hi[0] and cy.lo[0] <= y <= cy.hi[0]
+    new = ps.cone_f(*dx, *dy, *alpha)
+    # the array path's zeros may carry the other sign: equal as numbers
+    assert new == (float(cx.lo[0]), float(cx.hi[0]), float(cy.lo[0]), float(cy.hi[0]))
+    old = ref.cone(dx, dy, alpha)
+    assert _same(new[:2], old[0]) and _same(new[2:], old[1])
+    rho = (r - 1.0, r + 1.0)
+    px, py, pr, pa = polar.contract_polar(*iv[:2], IV.of(np.array([rho[0]]), np.array([rho[1]])),
+                                          iv[2])  # fmt: skip
+    for box, v in ((px, x), (py, y), (pr, r), (pa, a)):
+        assert box.lo[0] <= v <= box.hi[0], (box, v)
+    # the robot at the origin heading alpha, bearing 0, sees the peer at (x, y)
+    out = cps.contract_range_bearing((0.0, 0.0), (0.0, 0.0), alpha, dx, dy, rho, (0.0, 0.0))
+    for (lo, hi), v in zip(out, (0.0, 0.0, a, x, y, r, 0.0), strict=True):
+        assert lo <= v <= hi
