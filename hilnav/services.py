@@ -293,17 +293,18 @@ class MappingAdapter:
             return []
         self.scans += 1
         out: Outputs = []
-        if not self.filter.keep(self.heading.pose, msg.stamp_ns):
-            pass  # where the last scan was taken, or nowhere: counted by the filter
-        elif self.da is not None:
-            report = self.da.step(self.heading, msg)
-            if report is not None:
-                out.append(("association", report))
-        else:
-            sigma = math.sqrt(max(self.heading.variance_rad2, 0.0))
-            self._model.integrate(
-                self._grid, beams_from_scan(self.heading.pose, sigma, msg, self.mounts)
-            )
+        # A scan taken where the last one was, or with no pose to map it at, is left
+        # out (the filter counts it).
+        if self.filter.keep(self.heading.pose, msg.stamp_ns):
+            if self.da is not None:
+                report = self.da.step(self.heading, msg)
+                if report is not None:
+                    out.append(("association", report))
+            else:
+                sigma = math.sqrt(max(self.heading.variance_rad2, 0.0))
+                self._model.integrate(
+                    self._grid, beams_from_scan(self.heading.pose, sigma, msg, self.mounts)
+                )
         if self._last_map_ns is None or msg.stamp_ns - self._last_map_ns >= self.period_ns:
             self._last_map_ns = msg.stamp_ns
             out.append(("map", self.map_msg(msg.stamp_ns)))

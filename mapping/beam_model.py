@@ -133,16 +133,16 @@ def distance_cells(free: np.ndarray) -> np.ndarray:
     time; it is also about twice as fast on the association's windows): its squared
     distances are sums of squared integer offsets, exact in its float32 below 2^24, and
     the square root is taken in float64, as scipy takes it. A field too large for that
-    (over 2,896 cells across) goes to scipy. ``free`` must hold at least one ``False``
-    cell (an obstacle; :meth:`FieldBeamModel.set_map` checks)."""
-    if free.all():
-        raise ValueError("distance_cells needs at least one obstacle (False) cell")
+    (over 2,896 cells across) goes to scipy. Without an obstacle every distance is
+    infinite (edt's own answer; scipy's is not, so that case does not go to it)."""
     rows, cols = free.shape
-    if rows * rows + cols * cols >= 1 << 24:
-        from scipy.ndimage import distance_transform_edt
+    if rows * rows + cols * cols < 1 << 24:
+        return np.sqrt(edtsq(free, black_border=False, parallel=1), dtype=np.float64)
+    if free.all():
+        return np.full(free.shape, np.inf)
+    from scipy.ndimage import distance_transform_edt
 
-        return distance_transform_edt(free)
-    return np.sqrt(edtsq(free, black_border=False, parallel=1), dtype=np.float64)
+    return distance_transform_edt(free)
 
 
 def unknown_p(cfg: AssociationConfig, clear: np.ndarray) -> np.ndarray:
@@ -198,9 +198,6 @@ class FieldBeamModel:
         self._tables = None
         self.known = lo != 0.0
         self.origin = (grid.origin[0] + c0 * self.res, grid.origin[1] + r0 * self.res)
-        if not occ.any():
-            self.dist = np.full(occ.shape, np.inf, dtype=np.float32)
-            return
         self.dist = (distance_cells(~occ) * self.res).astype(np.float32)
 
     def _index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
