@@ -21,6 +21,12 @@ Prints, the LAST line a JSON object:
   measured at the same time: a second Python process with nothing else to do puts its
   clock 20 times a second to a third Zenoh session of this process over loopback TCP
   (what the pose's last hop is, without the daemon's work);
+- ``wake_floor_percent``: the floor under the daemon's CPU on this machine, measured at
+  the same time: a second Python process with nothing else to do, woken ``wake_floor_hz``
+  times a second (the devices' nominal reads: gyro 100, IR 20, SIPs 10, GPS 1) by a
+  pipe it waits on with epoll, reading a few bytes each time (its loop's thread CPU);
+  ``daemon_wakeups_per_s``: the daemon's threads' voluntary context switches per second
+  (each a wait that ended: a read, a put handed over, a timer);
 - ``mcap_messages_per_s``: messages in the log (all topics, raw bytes and Foxglove views
   included) per second of run; ``dropped``: messages the daemon's queues dropped.
 
@@ -168,6 +174,77 @@ class TransportFloor:
             self._session.close()
 
 
+WAKEE = """
+import os, select, sys, time
+fd, seconds = int(sys.argv[1]), float(sys.argv[2])
+ep = select.epoll()
+ep.register(fd, select.EPOLLIN)
+n, t0, end = 0, time.thread_time(), time.monotonic() + seconds
+while time.monotonic() < end:
+    for _ in ep.poll(0.5):
+        if not os.read(fd, 4096):
+            end = 0.0
+        n += 1
+print(n, time.thread_time() - t0)
+"""
+WAKE_FLOOR_HZ = 131.0  # the devices' nominal reads: gyro 100, IR 20, SIPs 10, GPS 1
+
+
+class WakeFloor:
+    """A process woken ``hz`` times a second by a pipe this process writes to (a thread,
+    on an absolute schedule): its loop's CPU is what waking Python costs here."""
+
+    def __init__(self, seconds: float, hz: float = WAKE_FLOOR_HZ) -> None:
+        r, self._w = os.pipe()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", WAKEE, str(r), str(seconds)],
+            pass_fds=(r,), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        os.close(r)
+        self.seconds, self.hz = seconds, hz
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._write, daemon=True)
+        self._thread.start()
+
+    def _write(self) -> None:
+        t0 = time.monotonic()
+        for i in range(int(self.seconds * self.hz)):
+            if self._stop.wait(max(0.0, t0 + i / self.hz - time.monotonic())):
+                return
+            os.write(self._w, b"0123456789abcdef")
+
+    def close(self) -> float:
+        """Stop; the wakee's CPU in percent of one core (NaN if it failed, said on stderr)."""
+        self._stop.set()
+        self._thread.join()
+        os.close(self._w)  # the wakee reads end-of-file and stops
+        try:
+            out, err = self.proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            out, err = self.proc.communicate(timeout=10)
+        try:
+            n, cpu = out.split()
+            return 100.0 * float(cpu) / (int(n) / self.hz)
+        except ValueError:
+            print(f"wake floor: {err.strip()[-500:]}", file=sys.stderr)
+            return float("nan")
+
+
+def voluntary_switches(pid: int) -> int:
+    """The voluntary context switches of every thread of ``pid`` so far."""
+    total = 0
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            with open(task / "status") as f:
+                for line in f:
+                    if line.startswith("voluntary_ctxt_switches:"):
+                        total += int(line.split()[1])
+        except OSError:  # a thread that ended
+            continue
+    return total
+
+
 class PoseLatencies:
     """Milliseconds from each received pose's stamp to its arrival (a bus callback)."""
 
@@ -290,10 +367,14 @@ def main(argv: list[str] | None = None) -> int:
     if not wait_for_robot(op, proc):
         return 1
     floor = TransportFloor(free_tcp_port(), args.seconds + 5.0)
+    wake = WakeFloor(args.seconds)
+    switches0 = voluntary_switches(proc.pid)
     try:
         cpu, fcpu, elapsed = drive_tour(op, proc, latencies, args.seconds)
+        switches = voluntary_switches(proc.pid) - switches0
     finally:
         floor.close()
+        wake_percent = wake.close()
     rss = peak_rss_mb(proc.pid)
     stdout, stderr = stop_daemon(op, proc)
     n_msgs, span_s = log_statistics(log)
@@ -315,6 +396,9 @@ def main(argv: list[str] | None = None) -> int:
         "pose_after_release_ms_p99": percentile(after, 99),
         "transport_ms_p50": percentile(floor.values[10:], 50),
         "transport_ms_p99": percentile(floor.values[10:], 99),
+        "wake_floor_percent": round(wake_percent, 2),
+        "wake_floor_hz": WAKE_FLOOR_HZ,
+        "daemon_wakeups_per_s": round(switches / elapsed, 1),
         "poses_received": len(latencies.values),
         "mcap_messages": n_msgs,
         "mcap_messages_per_s": round(n_msgs / span_s, 1) if span_s > 0 else 0.0,
