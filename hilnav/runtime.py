@@ -28,8 +28,11 @@ The daemon (``hilnav run``) and every robot of ``hilnav fleet`` are a
 A device message is logged, published when :data:`hilnav.topics.PUBLISHED` says so, and
 fed to the pipeline, whose outputs are published and logged the same way the moment their
 service makes them (the pipeline's ``on_output``: the pose goes out before cooperative
-localization's step). Log time is when the message was put on the queue (for a service
-output: when its input was). :meth:`open_bus` lowers the process's GIL switch interval to
+localization's step). A prompt item of a device read (odometry: :meth:`handle_read`'s
+``prompt``) and the outputs made of it are each put on the bus at once and logged, with
+their Foxglove views, after the last of them, so nothing but their own encodings comes
+between the device's read and the pose's put. Log time is when the message was put on
+the queue (for a service output: when its input was). :meth:`open_bus` lowers the process's GIL switch interval to
 :attr:`RobotRuntime.SWITCH_INTERVAL_S`.
 """
 
@@ -117,6 +120,10 @@ class RobotRuntime(RuntimeQueue):
         self.sinks = Sinks(sinks or {}, self.fault, memo)  # + "log" when the log opens
         self.closing = threading.Event()  # set: outputs are logged, no longer published
         self._closed = False
+        # while a prompt item is handled: what its thread put on the bus but has not
+        # logged yet (mcap topic, message, native record, log time), and that thread
+        self._unlogged: list[tuple[str, Any, Any, int]] | None = None
+        self._unlogged_thread = 0
 
     # -- opening ------------------------------------------------------------------------------
     def open_bus(self, shared: BusSession | None = None) -> Bus:
@@ -229,13 +236,37 @@ class RobotRuntime(RuntimeQueue):
         now = time.time_ns() if recv_ns is None else recv_ns
         for topic, msg in pending:
             try:
-                if later is None or topic in prompt:
+                if topic in prompt:
+                    self._handle_prompt(topic, msg, now, publish)
+                elif later is None:
                     self._handle_own(topic, msg, now, publish)
                 else:
                     later.append((topic, msg, now))
                     self._handle_own(topic, msg, now, publish, False)
             except Exception as exc:
                 self.fault("services", exc)
+
+    def _handle_prompt(self, topic: str, msg: Any, recv_ns: int, publish: bool) -> None:
+        """A prompt item (odometry) and the outputs made of it (heading, pose, box): each
+        goes on the bus the moment it is made, and all are logged, with their Foxglove
+        views, after the last: neither the views' encoding nor a log write (at times a
+        chunk's compression) comes between the device's read and the pose's put."""
+        if not self.sinks or not self.sinks.splits:
+            self._handle_own(topic, msg, recv_ns, publish)
+            return
+        self._unlogged, self._unlogged_thread = [], threading.get_ident()
+        try:
+            self._handle_own(topic, msg, recv_ns, publish)
+        finally:
+            unlogged, self._unlogged = self._unlogged, None
+            for mcap_topic, out, native, log_ns in unlogged:
+                self.guard("log", self._log_native, mcap_topic, out, native, log_ns)
+
+    def _log_native(self, mcap_topic: str, msg: Any, native: Any, log_ns: int) -> None:
+        """Log a message already put on the bus: its native record, then its views."""
+        records = [native, *self.sinks.views(mcap_topic, msg)]
+        if self.sinks.write_records(records, log_ns, stamp_of(msg)):
+            self.stats.logged += 1
 
     def emit_later(self, later: list[tuple[str, Any, int]], publish: bool = True) -> None:
         """Log and publish the items :meth:`handle_read` left for later, in order."""
@@ -315,13 +346,21 @@ class RobotRuntime(RuntimeQueue):
     def emit(self, topic: str, msg: Any, log_ns: int, publish: bool = True) -> None:
         """Publish (if the topics table says so) and log one of this robot's messages,
         encoded once: the bus sends the log's native record (its own encoding when there
-        is no sink). Log and publish times as in :meth:`log_msg`."""
+        is no sink). Log and publish times as in :meth:`log_msg`. While the loop handles a
+        prompt item, its thread's messages are logged after it (:meth:`_handle_prompt`)."""
         records = None
+        unlogged = self._unlogged
+        if unlogged is not None and self._unlogged_thread != threading.get_ident():
+            unlogged = None  # (the mapping worker's output, while the loop handles odometry)
         if self.sinks:
             mcap_topic = self._log_topics.get(topic)
             if mcap_topic is None:
                 mcap_topic = self._log_topics[topic] = log_topic(self.robot, topic)
-            records = self.sinks.encode(mcap_topic, msg)
+            if unlogged is None:
+                records = self.sinks.encode(mcap_topic, msg)
+            else:
+                native = self.sinks.encode_native(mcap_topic, msg)
+                records = None if native is None else [native]
         if publish and topic in self._published and self.bus is not None:
             try:
                 if records:
@@ -332,8 +371,11 @@ class RobotRuntime(RuntimeQueue):
                 self.stats.published += 1
             except Exception as exc:
                 self.fault("bus", exc)
-        if records and self.sinks.write_records(records, log_ns, stamp_of(msg)):
-            self.stats.logged += 1
+        if records:
+            if unlogged is not None:
+                unlogged.append((mcap_topic, msg, records[0], log_ns))  # logged after the read
+            elif self.sinks.write_records(records, log_ns, stamp_of(msg)):
+                self.stats.logged += 1
 
     def log_msg(self, mcap_topic: str, msg: Any, log_ns: int) -> None:
         """To every sink (log, live view). Log time = when the message was queued (for a

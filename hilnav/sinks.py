@@ -56,6 +56,23 @@ class Sinks:
             self._on_fault("log", exc)
             return None
 
+    @property
+    def splits(self) -> bool:
+        """Whether :meth:`encode_native` then :meth:`views` may stand for :meth:`encode`."""
+        return self._encoder.splits
+
+    def encode_native(self, topic: str, msg: Any) -> Record | None:
+        """The native record alone, or None (reported as :meth:`encode` does)."""
+        try:
+            return self._encoder.native(topic, msg)
+        except Exception as exc:
+            self._on_fault("log", exc)
+            return None
+
+    def views(self, topic: str, msg: Any) -> list[Record]:
+        """The message's Foxglove views, after its native record (:meth:`encode_native`)."""
+        return self._encoder.views_of(topic, msg)
+
     def write_records(self, records: list[Record], log_ns: int, publish_ns: int | None) -> bool:
         """Records of one message to every sink; True if every sink took them."""
         ok = True

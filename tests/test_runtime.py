@@ -3,6 +3,7 @@ log of one robot (the daemon and every fleet robot run on it)."""
 
 from __future__ import annotations
 
+from hilnav.bus import free_tcp_port
 from hilnav.config import parse_config
 from hilnav.log.reader import read_messages, read_metadata
 from hilnav.runtime import RobotRuntime
@@ -86,3 +87,61 @@ def test_a_device_read_is_one_entry_and_outputs_go_out_as_they_are_made():
     # the heading went out before the pose service ran on the same input
     assert "pose" not in order.seen[1][2] and "pose" in order.seen[2][2]
     rt.close()
+
+
+class _Puts:
+    """A sink that keeps, for each message logged, its records and how many messages the
+    robot's bus had put by then."""
+
+    def __init__(self, rt_of):
+        self.rt_of, self.seen = rt_of, []
+
+    def write_records(self, records, log_time_ns, publish_time_ns=None):
+        bus = self.rt_of().bus
+        self.seen.append(([(r.topic, r.data) for r in records], bus.stats.published))
+
+    def close(self):
+        pass
+
+
+def _odometry_read(prompt: frozenset[str]) -> _Puts:
+    port = free_tcp_port()
+    cfg = parse_config(
+        {
+            "name": "r1",
+            "services": {n: {"enabled": False} for n in ("localization", "mapping")},
+            "log": {"raw": False},
+            "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"]},
+        },
+        "<test>",
+    )
+    rts: list[RobotRuntime] = []
+    sink = _Puts(lambda: rts[0])
+    rt = RobotRuntime(cfg, sinks={"log": sink})
+    rts.append(rt)
+    rt.open_bus()
+    try:
+        for k in range(3):
+            odo = RobotOdometry(1_000_000_000 + k * 100_000_000, Pose2D(1.5 + 0.01 * k, 1.5, 0.1),
+                                0.1, 0.0, 0.0, 0.0, 12.0, True, True)  # fmt: skip
+            later: list | None = [] if prompt else None  # None: each logged as it comes
+            rt.handle_read([("odometry", odo)], 5_000 + k, later=later, prompt=prompt)
+            rt.emit_later(later or [])
+    finally:
+        rt.close()
+    assert rt.stats.faults == {}
+    return sink
+
+
+def test_a_prompt_read_and_its_outputs_are_all_put_before_any_is_logged():
+    """The daemon's odometry read: odometry, heading and pose go on the bus as each is
+    made, and are logged after the last put (nothing but their encodings before the
+    pose's put), with the same records, views included, as when logged at once."""
+    prompt = _odometry_read(frozenset({"odometry"}))
+    plain = _odometry_read(frozenset())
+    topics = [records[0][0] for records, _ in prompt.seen]
+    assert topics == ["/r1/odometry", "/r1/heading", "/r1/pose"] * 3
+    assert [puts for _, puts in prompt.seen] == [3] * 3 + [6] * 3 + [9] * 3
+    assert [puts for _, puts in plain.seen] == list(range(1, 10))  # each logged at its put
+    assert [records for records, _ in prompt.seen] == [records for records, _ in plain.seen]
+    assert any(len(records) > 1 for records, _ in prompt.seen)  # views logged too

@@ -148,6 +148,28 @@ class Encoder:
                 out.extend(self._views(topic, msg))
         return out
 
+    @property
+    def splits(self) -> bool:
+        """Whether :meth:`native` then :meth:`views_of` give what :meth:`encode` gives
+        (not through a memo of views shared with other encoders)."""
+        return self.memo is None
+
+    def native(self, topic: str, msg: Any) -> Record:
+        """The native record alone (its views later, in the messages' order, by
+        :meth:`views_of`): what a put needs at once."""
+        cls = type(msg)
+        name = _SCHEMA_NAMES.get(cls)
+        if name is None:
+            name = _SCHEMA_NAMES[cls] = msgs.schema_name(cls)
+        return Record(topic, name, msgs.encode(msg), cls)
+
+    def views_of(self, topic: str, msg: Any) -> list[Record]:
+        """The Foxglove views :meth:`encode` would add to the native record."""
+        if self.views and foxglove.may_have_views(type(msg)):
+            with self._lock:
+                return self._views(topic, msg)
+        return []
+
     def _shared(self, memo: ViewMemo, topic: str, name: str, msg: Any) -> list[Record]:
         """:meth:`encode` through the memo (records and views made once per process)."""
         known = memo.last(topic, msg)
