@@ -82,6 +82,7 @@ class Result:
     outcomes: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
     finish_s: float = 0.0
+    graph: str = ""  # what finish() did with the association's pose graph
     grid: OccupancyGrid | None = None  # the DA map, kept only for --out
 
 
@@ -191,7 +192,7 @@ def run_maps(
         traj = da.trajectory
         r = Result(name, score(grid, ref_map), *pose_errors(traj, ref[keep]), n, sig_deg, herr,
                    worst, da.outcome_counts())  # fmt: skip
-        r.grid, r.finish_s = grid, fin
+        r.grid, r.finish_s, r.graph = grid, fin, getattr(da, "graph_outcome", "")
     r.seconds = time.perf_counter() - t0
     return r
 
@@ -269,6 +270,8 @@ def main(argv: list[str] | None = None) -> int:
         print(row(noda[-1]), flush=True)
         da.append(run_maps(f"gyro {seed} DA", run, est, ref_map, grid_cfg, seed, da_cfg, motion))
         print(row(da[-1]), flush=True)
+        if da[-1].graph:
+            print(f"{'':18s} pose graph: {da[-1].graph}", flush=True)
         if args.out is not None:
             from mapping.export import write_png
 
@@ -315,6 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         "peak_rss_mb": round(peak, 1),
         "max_step_s": round(max(r.max_step_s for r in results), 3),
         "max_finish_s": round(max(r.finish_s for r in results), 3),
+        "graph_reposed_runs": sum(r.graph.startswith("re-posed") for r in da),
         "seconds": round(time.perf_counter() - t_all, 1),
     }
     if "encoders no DA" in enc:

@@ -44,6 +44,10 @@ module that holds it):
   no sensor on the robot reveals) is tested as hypotheses, each with its own map, on
   the scans as they come (:mod:`mapping.heading_drift`); an adopted drift re-aligns the
   poses since the test began and corrects every later step.
+- At the end of a run (:meth:`SampleAssociation.finish`) the checks' evidence is solved
+  as a pose graph over the whole history (:mod:`mapping.loop_graph`,
+  :mod:`mapping.pose_graph`) and the map rebuilt at its poses, kept only if it draws
+  the walls in no more occupied cells than the association's own map.
 
 Modules: :mod:`mapping.association_config` (the parameters), :mod:`mapping.scan_records`
 (the scans, the nodes and the window), :mod:`mapping.pose_samples` (the sample cloud:

@@ -22,15 +22,27 @@ distance errors, stays where it was and later corrections align to it. Here:
   effective and distinct samples, :mod:`mapping.loop_correction`): a "confirmed" check
   (the uncorrected pose fits the map) at once, and a candidate when the held-out test
   accepts it (a candidate left "unconfirmed", a "worse" or "weak" check adds nothing).
-  Each ties the check's scan to the earlier node (at least ``min_loop_m`` of travel back)
-  nearest the posterior's mean: the map matched there was drawn from that node's pass.
-  The measurement is the posterior's mean in the frame of that node's pose at the time,
+  Each ties the check's scan to the earlier scan whose pass drew the walls the window
+  matched (:meth:`LoopGraph.anchor`: the scans in the reference map vote with their
+  hits within ``MATCH_M`` of the window's hits at the posterior's mean, by the stretch
+  between two nodes); the walls drawn from a scan are rigid with its pose. The
+  measurement is the posterior's mean in the frame of that scan's pose at the time,
   its covariance the posterior's (tempered: conservative) turned into that frame plus a
-  floor for the map itself (a cell, 5 cm; a degree); a robust (Cauchy) kernel keeps a
-  wrong one from bending the graph (:mod:`mapping.pose_graph`);
+  floor for the map itself (a cell, 5 cm). The edges carry the position only
+  (``LOOP_HEADING_SD``, 1 rad, added to the heading's variance): six IR beams over the
+  1.5 m window say little about the heading, so the posterior's heading is mostly its
+  prior's, the odometry the graph already holds (in the simulated room the checks'
+  headings were off by 2-7 deg, one sigma of the posterior, all the same way). A
+  robust (Cauchy) kernel keeps a wrong edge from bending the graph
+  (:mod:`mapping.pose_graph`). An adopted drift re-poses the scans and rebuilds the map
+  (:mod:`mapping.heading_drift`): each edge then keeps what its check found against the
+  old map, its innovation over the old poses' relation, on the new poses' relation
+  (:meth:`LoopGraph.rebase`);
 - :meth:`LoopGraph.solve`: the graph optimised from the association's poses, and every
   scan re-posed between the two nodes around it along the recorded steps: the chain of
-  steps from each of them, blended by the distance travelled.
+  steps from each of them, blended by the distance travelled. The association takes the
+  result only if the map rebuilt at those poses is no less sharp than its own
+  (:meth:`mapping.association.SampleAssociation.finish`).
 """
 
 from __future__ import annotations
