@@ -15,15 +15,17 @@ and its Jacobians
     de/dx_j = [[ R_i^T, 0],                            [0, 0,  1]]
 
 (``edge_error`` / ``edge_jacobians``; tests/test_pose_graph.py checks them against
-finite differences). The normal equations H dx = -b (eq. 18-22) are assembled densely
-(a few hundred nodes: the graph of a run), node 0 held fixed (the gauge), and solved with
-Levenberg's damping H + lambda diag(H). An edge marked ``robust`` (a loop closure)
+finite differences). The normal equations H dx = -b (eq. 18-22) are assembled as a
+sparse matrix (3 x 3 blocks per edge), node 0 held fixed (the gauge), and solved by
+sparse LU with Levenberg's damping H + lambda diag(H): memory grows with the edges, not
+with the square of the nodes. An edge marked ``robust`` (a loop closure)
 counts with the Cauchy cost rho(s) = c^2 log(1 + s / c^2) of its squared Mahalanobis
 error s (iteratively reweighted: weight 1 / (1 + s / c^2)); c^2 = 11.34, chi-square with
 3 degrees of freedom at 99 %, so an edge that fits within its covariance keeps almost
 its full weight and one many sigmas off is down-weighted by s / c^2.
 
-Pure: numpy only.
+Pure: numpy, and scipy.sparse inside :meth:`PoseGraph.optimize` (imported there: the
+daemon, which never solves a graph, does not load scipy).
 """
 
 from __future__ import annotations
@@ -128,6 +130,9 @@ class PoseGraph:
 
     def optimize(self, iterations: int = 30, c2: float = CAUCHY_C2, tol: float = 1e-6) -> Solution:
         """Levenberg-Marquardt from the nodes' poses, node 0 fixed (module doc)."""
+        from scipy import sparse  # only here: the daemon never solves a graph
+        from scipy.sparse.linalg import spsolve
+
         x = np.array(self.poses, dtype=float)
         n = len(x)
         if n < 2 or not self.edges:
@@ -140,7 +145,6 @@ class PoseGraph:
             err = edge_error(x[ii], x[jj], z)
             a, b = edge_jacobians(x[ii], x[jj])
             om = info * w[:, None, None]
-            h = np.zeros((3 * n, 3 * n))
             g = np.zeros(3 * n)
             at_om = np.einsum("eki,ekl->eil", a, om)
             bt_om = np.einsum("eki,ekl->eil", b, om)
@@ -149,19 +153,28 @@ class PoseGraph:
                       (jj, ii, np.einsum("eil,elj->eij", bt_om, a)),
                       (jj, jj, np.einsum("eil,elj->eij", bt_om, b)))  # fmt: skip
             r3 = np.arange(3)
+            rows, cols, vals = [], [], []
             for p, q, blk in blocks:
-                rows = (3 * p[:, None, None] + r3[None, :, None]) * np.ones((1, 1, 3), int)
-                cols = (3 * q[:, None, None] + r3[None, None, :]) * np.ones((1, 3, 1), int)
-                np.add.at(h, (rows, cols), blk)
+                rows.append(np.broadcast_to(3 * p[:, None, None] + r3[None, :, None], blk.shape))
+                cols.append(np.broadcast_to(3 * q[:, None, None] + r3[None, None, :], blk.shape))
+                vals.append(blk)
             np.add.at(g, 3 * ii[:, None] + r3, np.einsum("eil,el->ei", at_om, err))
             np.add.at(g, 3 * jj[:, None] + r3, np.einsum("eil,el->ei", bt_om, err))
+            h = sparse.coo_matrix(
+                (np.concatenate([v.ravel() for v in vals]),
+                 (np.concatenate([r.ravel() for r in rows]),
+                  np.concatenate([c.ravel() for c in cols]))), shape=(3 * n, 3 * n)
+            ).tocsc()  # fmt: skip
             hf, gf = h[3:, 3:], g[3:]
-            diag = np.maximum(np.diag(hf), 1e-9)
+            diag = np.maximum(hf.diagonal(), 1e-9)
             improved = False
             for _ in range(10):
                 try:
-                    dx = np.linalg.solve(hf + lam * np.diag(diag), -gf)
-                except np.linalg.LinAlgError:
+                    dx = spsolve(hf + sparse.diags(lam * diag, format="csc"), -gf)
+                except RuntimeError:  # SuperLU: the matrix is singular
+                    lam *= 10.0
+                    continue
+                if not np.all(np.isfinite(dx)):
                     lam *= 10.0
                     continue
                 xn = x.copy()

@@ -103,3 +103,14 @@ def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="positive definite"):
         g.add_edge(0, 1, np.zeros(3), np.diag([1.0, 0.0, 1.0]))
     assert PoseGraph().optimize().iterations == 0
+
+
+def test_a_chain_of_a_thousand_nodes_solves_in_sparse_form():
+    truth, meas = _square_loop(1.0, seed=4)
+    meas = np.tile(meas, (16, 1))  # 32 laps of the square: 1,025 nodes
+    g, dead = _odometry_graph(meas)
+    n = len(g)
+    g.add_edge(0, n - 1, np.zeros(3), np.diag([400.0, 400.0, 1000.0]), True)
+    sol = g.optimize()
+    assert n == 1025 and sol.cost < sol.cost0
+    assert np.hypot(*sol.poses[-1, :2]) < 0.05  # the loop is closed
