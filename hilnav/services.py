@@ -232,12 +232,12 @@ class LocalizationAdapter:
 
 def association_config(cfg: RobotConfig) -> AssociationConfig:
     """The sample-based data association's parameters from the robot config: its sample
-    count, and the prior of the heading's drift per radian turned that the association
+    count, whether its pose graph is solved at the end, and the prior of the heading's drift per radian turned that the association
     tests on the map (the gyro's scale sigma: the one systematic term of the heading
     filter that no sensor on the robot reveals)."""
-    return AssociationConfig(
-        samples=cfg.services.mapping.samples, drift_sigma_per_rad=cfg.noise.gyro_scale_sigma
-    )
+    m = cfg.services.mapping
+    return AssociationConfig(samples=m.samples, drift_sigma_per_rad=cfg.noise.gyro_scale_sigma,
+                             pose_graph=m.pose_graph)  # fmt: skip
 
 
 def motion_filter_config(cfg: RobotConfig) -> MotionFilterConfig:

@@ -44,6 +44,10 @@ module that holds it):
   no sensor on the robot reveals) is tested as hypotheses, each with its own map, on
   the scans as they come (:mod:`mapping.heading_drift`); an adopted drift re-aligns the
   poses since the test began and corrects every later step.
+- At the end of a run (:meth:`SampleAssociation.finish`) the checks' evidence is solved
+  as a pose graph over the whole history (:mod:`mapping.loop_graph`,
+  :mod:`mapping.pose_graph`) and the map rebuilt at its poses, kept only if it draws
+  the walls in no more occupied cells than the association's own map.
 
 Modules: :mod:`mapping.association_config` (the parameters), :mod:`mapping.scan_records`
 (the scans, the nodes and the window), :mod:`mapping.pose_samples` (the sample cloud:
@@ -69,8 +73,9 @@ from mapping.association_config import AssociationConfig
 from mapping.beam_model import BeamModel, FieldBeamModel, pair_ratio
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.heading_drift import Adoption, DriftBank, drifted_step
-from mapping.ir_inverse import KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
+from mapping.ir_inverse import KIND_HIT, KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
 from mapping.loop_correction import HeldOut, check_loop
+from mapping.loop_graph import LoopGraph
 from mapping.pose_samples import spread
 from mapping.reinsertion import Rebuild, Snapshot, keep_snapshot, realign
 from mapping.scan_records import ScanRecords
@@ -102,6 +107,7 @@ class SampleAssociation:
         # cell updates are taken from the first (mapping.ir_memo; at most 2 M, 24 MB: the
         # scans of ref_lag_m at 10-20 Hz; the drift branches, at other poses, do not use it).
         self.model = IrInverseModel(inverse or InverseModelConfig(), reuse_cells=2_000_000)
+        self._grid_config = grid_config
         self.grid = OccupancyGrid(grid_config)
         self._ref = self.grid.copy()
         self._ref_upto = 0
@@ -124,6 +130,13 @@ class SampleAssociation:
         self._drift = 0.0
         self._drift_spacing = self.config.drift_sigma_per_rad
         self._bank: DriftBank | None = None
+        # The checks' evidence as a pose graph, solved at finish() (mapping.loop_graph):
+        # the dead-reckoned pose, the turn so far, a candidate's loop edge.
+        self._graph = LoopGraph(self.config) if self.config.pose_graph else None
+        self._step_in = np.zeros(3)  # the input's last step (the first: its pose)
+        self._turn = 0.0
+        self._pending_edge = None
+        self.graph_outcome = ""  # what finish() did with the graph
         self.reports: list[AssociationReport] = []
         self.cell_updates = 0
         self.skipped_readings = 0
@@ -208,7 +221,36 @@ class SampleAssociation:
         return self._associate(node, heading.stamp_ns)
 
     def finish(self) -> OccupancyGrid:
-        """The final map (kept for symmetry with a streaming service's shutdown)."""
+        """The final map. With ``pose_graph``, the graph of the checks' evidence is
+        solved (:mod:`mapping.loop_graph`), every scan re-posed from it and the map
+        rebuilt at those poses (once, a bounded batch of scans at a time). The rebuilt
+        map is taken only if it draws its walls in no more occupied cells than the map
+        it replaces (the same scans at poses that agree put each wall in fewer cells;
+        passes that disagree double it): otherwise the association's poses and map
+        stay, and :attr:`graph_outcome` says why."""
+        g = self._graph
+        new = g.solve(self._rec.poses) if g is not None else None
+        if new is None:
+            self.graph_outcome = "no loop edge" if g is not None else "off"
+            return self.grid
+        r = self._rec
+        grid = OccupancyGrid(self._grid_config)
+        for a in range(0, len(r), 200):
+            b = min(a + 200, len(r))
+            self.cell_updates += self.model.integrate(grid, r.beams(a, b, new[a:b]), "off")
+        occ_old, occ_new = int((self.grid.trinary() == 1).sum()), int((grid.trinary() == 1).sum())
+        self.graph_outcome = (f"{len(g.loops)} loop edges, {len(set(g.scans))} nodes: "
+                              f"occupied cells {occ_old} -> {occ_new}")  # fmt: skip
+        if occ_new > occ_old:
+            self.graph_outcome = f"kept the association's map ({self.graph_outcome})"
+            return self.grid
+        for i in range(len(r)):
+            r.poses[i] = new[i]
+        self.reinserted_scans += len(r)
+        self.grid, self._ref, self._ref_upto, self._rebuild = grid, grid, len(r), None
+        self._estimate = new[-1].copy()
+        self._pending = self._bank = None
+        self.graph_outcome = f"re-posed ({self.graph_outcome})"
         return self.grid
 
     def log_likelihood(
@@ -223,6 +265,7 @@ class SampleAssociation:
         """Dead-reckon the estimate and spread the cloud by the step to ``p_in``."""
         if self._estimate is None:
             self._estimate = p_in.copy()
+            self._step_in = p_in.copy()
             self._particles = np.tile(p_in, (self.config.samples, 1))
         else:
             rel_in = relative(self._prev_in, p_in)
@@ -232,6 +275,8 @@ class SampleAssociation:
             d = float(math.hypot(rel[0], rel[1]))
             self._travel += d
             self._estimate = compose(self._estimate, rel)
+            self._step_in = rel_in
+            self._turn += abs(float(rel[2]))
             dvar = max(0.0, var - self._prev_var)
             self._particles = spread(self._particles, rel, d, dvar, self.config, self._rng)
         self._prev_in, self._prev_var = p_in, var
@@ -245,6 +290,15 @@ class SampleAssociation:
         if self._rebuild is None:
             keep_snapshot(self._snaps, n, self._travel, self.grid, cfg)
         r.append(self._estimate.copy(), sigma, ranges, kinds, self._travel, stamp_ns)
+        if self._graph is not None:
+            hit = kinds == KIND_HIT
+            rng = np.where(hit, ranges, np.nan)
+            m = self.mounts
+            hits = np.column_stack(
+                [m[:, 0] + rng * np.cos(m[:, 2]), m[:, 1] + rng * np.sin(m[:, 2])]
+            )
+            self._graph.record(self._step_in, self._drift, self._travel, self._turn,
+                               self._prev_var, hits)  # fmt: skip
         if self._bank is not None:
             self._bank.record()
         self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1), "keep")
@@ -292,14 +346,25 @@ class SampleAssociation:
         check = check_loop(cfg, p, self._estimate, window, self._field.log_likelihood,
                            self._rng, node, stamp_ns, self._pair(*window))  # fmt: skip
         post = check.posterior
+        edge = None
+        if self._graph is not None and post is not None:
+            sens, ranges, kinds = window
+            at = compose(np.broadcast_to(post.mean, sens.shape), sens)[kinds == KIND_HIT]
+            rh = ranges[kinds == KIND_HIT]
+            ends = at[:, :2] + rh[:, None] * np.column_stack([np.cos(at[:, 2]), np.sin(at[:, 2])])
+            edge = self._graph.loop_edge(len(self._rec) - 1, post.mean, post.cov,
+                                         self._rec.poses, ends)  # fmt: skip
         if check.report.outcome == "confirmed" and post is not None:
             # The evidence agrees with the estimate: the cloud becomes the posterior (the
             # information is kept; the estimate is not moved).
             self._particles = post.samples.copy()
+            if self._graph is not None:
+                self._graph.add_loop(edge)
         if check.report.outcome != "candidate":
             self.reports.append(check.report)
             return check.report
         self._pending = HeldOut(check, self._estimate.copy(), self._travel)
+        self._pending_edge = edge  # a loop edge once the held-out test accepts it
         return None
 
     def _held_out(
@@ -325,6 +390,8 @@ class SampleAssociation:
                              reason=f"not confirmed by later data: {why}")  # fmt: skip
             self.reports.append(report)
             return report
+        if self._graph is not None:
+            self._graph.add_loop(self._pending_edge)
         corrected = h.corrected(self._estimate)
         moved = relative(h.base, self._estimate)
         post = h.check.posterior
@@ -354,9 +421,13 @@ class SampleAssociation:
         from now on; rebuild the map from its reference map (a few scans per step)."""
         b, n, upto = won.branch, len(self._rec), self._ref_upto
         old, prev = self._estimate.copy(), self._drift
+        before = [p.copy() for p in self._rec.poses] if self._graph is not None else []
         self._particles, self._snaps = won.rebase(self._rec, self._particles, old, self._snaps,
                                                   upto, self._travel)  # fmt: skip
         self._estimate, self._drift = b.pose.copy(), b.drift
+        if self._graph is not None:
+            self._graph.adopt(won.start, b.drift)
+            self._graph.rebase(before, self._rec.poses)
         self._drift_spacing = won.next_spacing(self._drift_spacing, self.config.drift_steps)
         self._pending, self._bank = None, None
         self._rebuild = Rebuild(upto, upto, b.ref)

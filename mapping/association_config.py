@@ -15,7 +15,10 @@ tempering and the acceptance tests (``temperature``, ``max_stages``, ``mh_moves`
 :mod:`mapping.association`; the drift hypotheses (``drift_sigma_per_rad``: the prior
 sigma of the input heading's error per radian turned, the gyro's scale sigma, 0 = no
 test; ``drift_steps``: the hypotheses in units of the current spacing) in
-:mod:`mapping.heading_drift`.
+:mod:`mapping.heading_drift`; the pose graph solved at the end of a run (``pose_graph``
+on or off, ``graph_node_m``: a node per this much travel, ``graph_scale_sigma`` and
+``graph_scale_length_m``: the wheels' distance scale error and the length over which it
+persists) in :mod:`mapping.loop_graph`.
 """
 
 from __future__ import annotations
@@ -63,12 +66,17 @@ class AssociationConfig:
     max_range_m: float = 5.5
     drift_sigma_per_rad: float = 0.005
     drift_steps: tuple[float, ...] = (-3.0, -1.5, 1.5, 3.0)
+    pose_graph: bool = True
+    graph_node_m: float = 1.0
+    graph_scale_sigma: float = 0.03
+    graph_scale_length_m: float = 10.0
 
     def __post_init__(self) -> None:
         if self.samples < 10:
             raise ValueError("association samples must be >= 10")
         for name in ("node_spacing_m", "check_every_m", "window_m", "temperature",
-                     "confirm_m", "reinsert_m", "snapshot_every_m"):  # fmt: skip
+                     "confirm_m", "reinsert_m", "snapshot_every_m", "graph_node_m",
+                     "graph_scale_length_m"):  # fmt: skip
             if getattr(self, name) <= 0:
                 raise ValueError(f"association {name} must be > 0")
         if self.min_loop_m < self.ref_lag_m:
@@ -90,5 +98,7 @@ class AssociationConfig:
         if any(not math.isfinite(m) or m == 0 for m in self.drift_steps):
             raise ValueError("association drift_steps must be finite and non-zero (the "
                              "null hypothesis is the association's own branch)")  # fmt: skip
+        if not (math.isfinite(self.graph_scale_sigma) and self.graph_scale_sigma >= 0):
+            raise ValueError("association graph_scale_sigma must be finite and >= 0")
         if abs(self.a_hit + self.a_rand + self.a_max - 1.0) > 1e-6:
             raise ValueError("association a_hit + a_rand + a_max must be 1 (eq. 8 weights)")

@@ -201,6 +201,10 @@ class MappingService:
     )
     association: bool = True
     samples: int = field(default=200, metadata=_check(lambda v: v >= 10, "must be >= 10"))
+    # At the end of a run the association's loop checks are solved as a pose graph and
+    # the map rebuilt at its poses, if that draws the walls in no more cells
+    # (mapping.loop_graph); false keeps the association's own poses and map.
+    pose_graph: bool = True
     publish_every_s: float = field(default=2.0, metadata=_positive("2.0"))
     seed: int = 0
     # The motion filter (mapping.motion_filter): a scan goes into the grid after this
