@@ -87,6 +87,11 @@ class MappingWorker:
         self._q.put(("", None, None))
         self._thread.join(timeout_s)
 
+    @property
+    def done(self) -> bool:
+        """The thread has stopped (after :meth:`close`): the mapping is no longer fed."""
+        return not self._thread.is_alive()
+
 
 class Pipeline:
     """Deterministic service graph of one robot (see the module docstring)."""
@@ -157,6 +162,15 @@ class Pipeline:
         """Let the mapping worker finish its queue (no-op without one)."""
         if self.worker is not None:
             self.worker.close()
+
+    def finish(self) -> Outputs:
+        """The services' last outputs at the end of a run, after :meth:`close` (the
+        mapping's final map, its pose graph solved: :meth:`MappingAdapter.finish`)."""
+        if self.mapping is None or (self.worker is not None and not self.worker.done):
+            return []  # (a worker still busy after close()'s wait: its map stays as it is)
+        out: Outputs = []
+        self._take(self.mapping.finish(), out, None)
+        return out
 
 
 def _ignore(where: str, exc: BaseException) -> None:

@@ -171,12 +171,17 @@ class RobotRuntime(RuntimeQueue):
             self.bus.queryable(name, lambda n=name: latest.get(n))
 
     def close(self) -> None:
-        """Let the mapping worker finish (its outputs logged), close the bus and sinks."""
+        """Let the mapping worker finish (its outputs logged), log the services' last
+        outputs (the final map: :meth:`hilnav.pipeline.Pipeline.finish`), close the bus
+        and sinks."""
         if self._closed:
             return
         self._closed = True
         self.closing.set()
         self.pipeline.close()
+        finish = getattr(self.pipeline, "finish", None)  # (a data set's pipeline has none)
+        if finish is not None:
+            self.guard("mapping", finish)  # its outputs: logged by _from_service
         if self.bus is not None:
             try:
                 self.bus.close()

@@ -264,6 +264,8 @@ class MappingAdapter:
         self.mismatched = 0
         self.filter = MotionFilter(motion_filter_config(cfg))
         self._last_map_ns: int | None = None
+        self._last_scan_ns: int | None = None
+        self.finished = False
         if m.association:
             self.da: SampleAssociation | None = SampleAssociation(
                 self.mounts,
@@ -292,6 +294,7 @@ class MappingAdapter:
             self.mismatched += 1
             return []
         self.scans += 1
+        self._last_scan_ns = msg.stamp_ns
         out: Outputs = []
         # A scan taken where the last one was, or with no pose to map it at, is left
         # out (the filter counts it).
@@ -310,13 +313,29 @@ class MappingAdapter:
             out.append(("map", self.map_msg(msg.stamp_ns)))
         return out
 
+    def finish(self) -> Outputs:
+        """The end of the run (once): the association's last word on the whole history
+        (:meth:`mapping.association.SampleAssociation.finish`: its pose graph solved,
+        the map rebuilt at its poses when that draws the walls sharper), and the final
+        map, stamped at the last scan. Nothing before the first scan."""
+        if self.finished or self._last_scan_ns is None:
+            return []
+        self.finished = True
+        if self.da is not None:
+            self.da.finish()
+        return [("map", self.map_msg(self._last_scan_ns))]
+
     def summary(self) -> str:
         """What became of the scans: mapped, left out by the motion filter, without a
-        pose to map them at, of a width that does not match the mounts."""
+        pose to map them at, of a width that does not match the mounts; and, after
+        :meth:`finish`, what the pose graph did."""
         f = self.filter
-        return (f"{self.scans + self.mismatched} IR scans: {f.kept} mapped, {f.dropped} left "
+        text = (f"{self.scans + self.mismatched} IR scans: {f.kept} mapped, {f.dropped} left "
                 f"out by the motion filter, {f.unplaced} without a finite pose, "
                 f"{self.mismatched} of the wrong width")  # fmt: skip
+        if self.finished and self.da is not None and self.da.graph_outcome:
+            text += f"; pose graph: {self.da.graph_outcome}"
+        return text
 
     def map_msg(self, stamp_ns: int) -> Any:
         return to_grid_msg(self.grid, stamp_ns, "map")

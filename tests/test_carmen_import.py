@@ -153,6 +153,13 @@ def test_replay_maps_it_and_analyze_scores_it(imported: Path, tmp_path: Path) ->
     out = tmp_path / "replayed.mcap"
     rep = replay(imported, out, progress=False)
     assert rep.pipeline_errors == 0 and rep.outputs["map"] >= 1 and rep.outputs["heading"] == 300
+    # the run's last word: the final map (the association's pose graph solved), logged
+    # at the last input's log time and stamped at the last scan
+    maps = [m for m in read_messages(out) if m.topic == "/intel/map"]
+    last_ir = [m for m in read_messages(imported) if m.topic == "/intel/ir"][-1]
+    fed = [m.log_time_ns for m in read_messages(imported) if m.topic.rsplit("/", 1)[-1]
+           in ("odometry", "gyro", "ir", "gps")]  # fmt: skip
+    assert maps[-1].publish_time_ns == last_ir.msg.stamp_ns and maps[-1].log_time_ns == max(fed)
     ra = analyze(out).robots["intel"]
     assert ra.reference == "truth"
     assert ra.paths["heading"].position.error_m.mean < 0.3

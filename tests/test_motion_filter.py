@@ -94,3 +94,41 @@ def test_a_scan_without_a_finite_pose_is_counted_not_mapped() -> None:
     _feed(a, [Pose2D(0.0, 0.0, 0.0), Pose2D(math.nan, 0.0, 0.0), Pose2D(0.1, 0.0, 0.0)])
     assert (a.filter.kept, a.filter.unplaced) == (2, 1) and a.grid.updates > 0
     assert "1 without a finite pose" in a.summary()
+
+
+@pytest.mark.parametrize("graph", [False, True])
+def test_the_end_of_a_run_gives_the_final_map_once(graph: bool) -> None:
+    """``finish()``: nothing before the first scan; then the final map stamped at the last
+    scan, once; the summary says what the association's pose graph did (or that it is
+    off); the runtime logs that map when it closes."""
+    cfg = parse_config({"services": {"mapping": {"pose_graph": graph}}, "log": {"raw": False}})
+    a = MappingAdapter(cfg)
+    assert a.finish() == []  # no scan yet
+    _feed(a, [Pose2D(0.015 * i, 0.0, 0.0) for i in range(200)])
+    ((topic, final),) = a.finish()
+    assert topic == "map" and final.timestamp.sec * 10**9 + final.timestamp.nsec == 200 * 50 * MS
+    assert a.finish() == []  # once
+    assert a.da is not None and a.summary().endswith(f"pose graph: {a.da.graph_outcome}")
+    assert (a.da.graph_outcome == "off") is not graph  # a straight line: no loop, or off
+
+
+def test_the_runtime_logs_the_final_map_when_it_closes(tmp_path) -> None:
+    from hilnav.log.reader import read_messages
+    from hilnav.pipeline import Pipeline
+    from hilnav.runtime import RobotRuntime
+
+    cfg = parse_config({"name": "r1", "log": {"raw": False},
+                        "services": {"localization": {"enabled": False}}})  # fmt: skip
+    # the mapping in the runtime's thread (no worker), fed headings as the service would
+    rt = RobotRuntime(cfg, pipeline=lambda c, on_mapping, **kw: Pipeline(c, **kw))
+    rt.open_log(tmp_path / "r1.mcap", simulated=True)
+    for i in range(60):
+        t = (i + 1) * 50 * MS
+        p = Pose2D(0.015 * i, 0.0, 0.0)
+        rt.pipeline.mapping.feed("heading", HeadingEstimate(t, 0.0, 1e-6, p))
+        rt.put("ir", IrScan(t, 1, i, (2.0,) * 6, ("ok",) * 6, (1.0,) * 6), recv_ns=t)
+        rt.drain()
+    rt.close()
+    maps = [m.msg for m in read_messages(tmp_path / "r1.mcap") if m.topic == "/r1/map"]
+    assert (maps[-1].timestamp.sec, maps[-1].timestamp.nsec) == (3, 0)  # the last scan's
+    assert rt.pipeline.mapping.finished and rt.stats.faults == {}

@@ -132,6 +132,7 @@ def replay(
             rep.records += 1
             bar.update(1)
             router.record(r)
+        router.finish()
     bar.close()
     rep.read = {k: v for k, v in stats.as_dict().items() if k != "errors"}
     return rep
@@ -187,6 +188,7 @@ class _Router:
         self.rep = rep
         self.stats = stats
         self.types = message_types()
+        self.last_fed_ns: int | None = None  # the log time of the last input fed
 
     def record(self, r: RawRecord) -> None:
         """Route one input record (see the module docstring for what the output holds)."""
@@ -236,8 +238,18 @@ class _Router:
             if topic in SERVICE_INPUTS:
                 self._feed(self.robot, topic, dm, r.log_time_ns, f"{topic} from raw")
 
+    def finish(self) -> None:
+        """The pipeline's last outputs at the end of the log (a daemon pipeline's final
+        map: :meth:`hilnav.pipeline.Pipeline.finish`), at the last input's log time."""
+        finish = getattr(self.pipe, "finish", None)
+        if finish is None or self.last_fed_ns is None:
+            return
+        outs = self._guarded(finish, "the end of the log")
+        self._emit([(self.robot, t, m) for t, m in outs], self.last_fed_ns)
+
     def _feed(self, who: str, topic: str, msg: Any, log_ns: int, what: str) -> None:
         self.rep.fed[topic] += 1
+        self.last_fed_ns = log_ns
         if self.multi:
             outs = self._guarded(lambda: self.pipe.feed_robot(who, topic, msg), what)
         else:
