@@ -175,7 +175,7 @@ def error_model(st: Session, new: dict) -> None:
     0-360 degrees (``st._unnormed``: gpsd moves such a track by 360 each run), so that a
     sentence changing neither the fix nor the DOPs need not run it again."""
     dop = st.sky.dop
-    st._dops = dict(dop)
+    st._dops = dop.copy()
     fix = st.fix
     t = fix.time_ns
     old = st.oldfix

@@ -103,10 +103,12 @@ def _gsa_fields(
                 dops[name] = v
     gnss = _TALKER_GNSS.get(talker[1:2], 0)
     prns = []
-    for i in range(2, count - 4):
-        num = _INTS.get(f[i])
+    for field in f[2 : count - 4]:
+        num = _INTS.get(field)
         if num is None:
-            num = atoi(f[i])
+            if not field:  # (an empty field: atoi's 0)
+                continue
+            num = atoi(field)
         if num >= 1:
             prn = nmea_prn(talker, num, gnss)[0]
             if prn > 0:
