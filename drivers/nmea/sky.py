@@ -173,13 +173,12 @@ def _gsv_fields(talker: str, f: tuple[str, ...] | list[str]) -> tuple:
         if num == 0:
             sats.append(None)
             continue
-        three = f[k : k + 3]
-        key = (talker, gnss, field, *three)
+        key = (talker, gnss, *f[k - 1 : k + 3])  # (its PRN, elevation, azimuth, signal)
         sat = _SATS.get(key)
         if sat is None:
             if len(_SATS) >= 512:
                 _SATS.clear()
-            sat = _SATS[key] = _sat_entry(talker, gnss, num, three)
+            sat = _SATS[key] = _sat_entry(talker, gnss, num, key[3:])
         sats.append(sat)
         k += 3
     return (sigid, atoi(f[0]), part, tuple(sats))
