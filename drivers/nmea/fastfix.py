@@ -129,36 +129,18 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     else:
         comb._pending = True
         comb._snap = None
-        changed = False
-        if time_ns is not None:
-            if not time_ns and st.lastfix is fix:
-                st.lastfix = fix.copy()
-            if fix.time_ns != time_ns:
-                fix.time_ns = time_ns
-                changed = True
+        changed = _merge(st, fix, time_ns, lat, lon, mode, status)
         if hdop is not None:
             sky.dop["hdop"] = hdop
         st.quality, st.gga_sats = quality, sats
         if sky.used_count != sats:
             sky.used_count = sats
             sky.changed = True
-        if fix.lat != lat:
-            fix.lat = lat
-            changed = True
-        if fix.lon != lon:
-            fix.lon = lon
-            changed = True
         if sep is not None and fix.geoid_sep != sep:
             fix.geoid_sep = sep
             changed = True
         if alt is not None and fix.alt_msl != alt:
             fix.alt_msl = alt
-            changed = True
-        if fix.mode != mode:
-            fix.mode = mode
-            changed = True
-        if fix.status < status:
-            fix.status = status
             changed = True
         if age is not None and (fix.dgps_age != age or fix.dgps_station != station):
             fix.dgps_age, fix.dgps_station = age, station
@@ -191,6 +173,32 @@ def _new_epoch(comb: EpochCombiner, out: list) -> None:
     comb._ender = comb._last_timed
     comb._last_timed = None
     comb._reported = False
+
+
+def _merge(st: Session, fix: Fix, time_ns, lat: float, lon: float, mode: int, status: int) -> bool:
+    """merge's comparisons of a position sentence's time (None: it sets none), position,
+    mode and status (upwards only) with the fix's, which takes what differs; whether
+    anything did. A time of 0 leaves the last fix as it was (Session.apply's copy)."""
+    changed = False
+    if time_ns is not None:
+        if not time_ns and st.lastfix is fix:
+            st.lastfix = fix.copy()
+        if fix.time_ns != time_ns:
+            fix.time_ns = time_ns
+            changed = True
+    if fix.lat != lat:
+        fix.lat = lat
+        changed = True
+    if fix.lon != lon:
+        fix.lon = lon
+        changed = True
+    if fix.mode != mode:
+        fix.mode = mode
+        changed = True
+    if fix.status < status:
+        fix.status = status
+        changed = True
+    return changed
 
 
 def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
@@ -267,18 +275,8 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     else:
         comb._pending = True
         comb._snap = None
-        changed = moved = False  # (moved: the speed, track or variation changed)
-        if not time_ns and st.lastfix is fix:
-            st.lastfix = fix.copy()
-        if fix.time_ns != time_ns:
-            fix.time_ns = time_ns
-            changed = True
-        if fix.lat != lat:
-            fix.lat = lat
-            changed = True
-        if fix.lon != lon:
-            fix.lon = lon
-            changed = True
+        changed = _merge(st, fix, time_ns, lat, lon, mode, newstatus)
+        moved = False  # (the speed, track or variation changed)
         if speed_set and fix.speed != speed:
             fix.speed = speed
             moved = True
@@ -288,12 +286,6 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         if magvar is not None and fix.magvar != magvar:
             fix.magvar = magvar
             moved = True
-        if fix.mode != mode:
-            fix.mode = mode
-            changed = True
-        if fix.status < newstatus:
-            fix.status = newstatus
-            changed = True
         if changed or sky.dop != st._dops or st._unnormed:
             error_model(st, _NONE)
         elif moved:
@@ -349,27 +341,8 @@ def gll(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     # --- EpochCombiner.add_into and Session.apply
     comb._pending = True
     comb._snap = None
-    changed = False
-    if st.date is not None:
-        time_ns = st.day * DAY_NS + ns
-        if not time_ns and st.lastfix is fix:
-            st.lastfix = fix.copy()
-        if fix.time_ns != time_ns:
-            fix.time_ns = time_ns
-            changed = True
-    if fix.lat != lat:
-        fix.lat = lat
-        changed = True
-    if fix.lon != lon:
-        fix.lon = lon
-        changed = True
-    if fix.mode != mode:
-        fix.mode = mode
-        changed = True
-    if fix.status < status:
-        fix.status = status
-        changed = True
-    if changed or sky.dop != st._dops or st._unnormed:
+    time_ns = None if st.date is None else st.day * DAY_NS + ns
+    if _merge(st, fix, time_ns, lat, lon, mode, status) or sky.dop != st._dops or st._unnormed:
         error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
