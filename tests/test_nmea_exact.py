@@ -16,10 +16,10 @@ import random
 import re
 
 from drivers.nmea import NmeaCodec, build
+from drivers.nmea.dops import geometry_dops
 from drivers.nmea.errmodel import _nearer_than, earth_distance
 from drivers.nmea.fields import _degrees, clock, fnum
 from drivers.nmea.framer import NmeaFramer, _classify, _key
-from drivers.nmea.sky import _geometry_dops
 from tests.test_nmea_fastpath import sky_stream
 
 _INT = re.compile(r"\s*([-+]?\d+)")
@@ -118,7 +118,7 @@ def test_dops_of_a_geometry_bit_for_bit():
         else:
             g = [(rng.choice([0, 90, 180, 270]), rng.choice([0, 45, 90, -90])) for _ in range(n)]
         az_el = tuple((float(a), float(e)) for a, e in g)
-        assert repr(_geometry_dops(az_el)) == repr(_dops_plain(az_el)), az_el
+        assert repr(geometry_dops(az_el)) == repr(_dops_plain(az_el)), az_el
 
 
 def test_the_sky_geometry_is_that_of_the_satellites_used():

@@ -283,3 +283,33 @@ def test_tables_change_no_result(logs):
             assert cold.feed(data[i : i + 97], i) == a
             assert _state(cold) == _state(warm)
         assert warm.flush() == cold.flush()
+
+
+def _with_gll(data: bytes, rng: random.Random, only: bool = False) -> bytes:
+    """A GLL of each GGA's time and position (valid or not, FAA modes of every kind)
+    beside it, or (``only``) in its place, the RMC and VTG left out too."""
+    out = []
+    for line in data.split(b"\n"):
+        body = line[1 : line.rfind(b"*")].decode("latin-1") if line[:1] == b"$" else ""
+        f = body.split(",")
+        if body[2:5] == "GGA" and len(f) >= 6:
+            gll = f"{body[:2]}GLL,{f[2]},{f[3]},{f[4]},{f[5]},{f[1]},{rng.choice('AAAV')}"
+            if rng.random() < 0.8:
+                gll += "," + rng.choice(["A", "D", "N", "E", "", "R"])
+            gll_line = build(gll).rstrip(b"\n")
+            out += [gll_line] if only else rng.choice([[gll_line, line], [line, gll_line]])
+        elif not only or body[2:5] in ("GSA", "GSV", "ZDA"):
+            out.append(line)
+    return b"\n".join(out)
+
+
+def test_gll_beside_gga_and_alone(logs):
+    """The GLL of an epoch under way takes the fast path (one that starts a cycle, the
+    reference): gpsd's logs and written streams with a GLL beside each GGA, or alone."""
+    rng = random.Random(37)
+    streams = [*logs.values()] + [_written(rng, rng.randint(3, 30)) for _ in range(20)]
+    for data in streams:
+        for only in (False, True):
+            gll = _with_gll(data, rng, only)
+            _same(gll, rng.choice([None, [7], [40, 500]]), rng)
+            _same(_damaged(gll, rng), None, rng)

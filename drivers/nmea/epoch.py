@@ -113,6 +113,7 @@ _make_sky = positional_constructor(GpsSky)
 # a fix's fields but its stamp, as a tuple (what the dataclass's == compares)
 _but_stamp = attrgetter(*(f.name for f in dataclass_fields(GpsFix) if f.name != "stamp_ns"))
 _NO_GST = (None,) * 7
+_prn = attrgetter("prn")
 
 
 class EpochCombiner:
@@ -206,7 +207,7 @@ class EpochCombiner:
         st = self.session
         sky = st.sky
         sky.changed = False
-        sats = tuple([s for s in sky.view if s.prn])  # (the view holds the messages)
+        sats = tuple(filter(_prn, sky.view))  # (the view holds the messages; PRN 0: none)
         get = sky.dop.get
         return _make_sky(
             self._stamp_ns, iso_time(st.fix.time_ns), sats, len(sats) if sky.complete else None,

@@ -130,6 +130,13 @@ def _tracks(st: Session, fix) -> None:
     true; each moved into 0-360 degrees by 360 once, as gpsd does (``st._unnormed``: one
     is still outside, so another run would move it again)."""
     track, magvar, magtrack = fix.track, fix.magvar, fix.magtrack
+    if (
+        magvar is None
+        and (track is None or 0.0 <= track < 360.0)
+        and (magtrack is None or 0.0 <= magtrack < 360.0)
+    ):  # (the usual fix: nothing to derive or move)
+        st._unnormed = False
+        return
     if magvar is not None:
         if magtrack is None and track is not None:
             fix.magtrack = magtrack = track + magvar
@@ -168,7 +175,7 @@ def error_model(st: Session, new: dict) -> None:
     0-360 degrees (``st._unnormed``: gpsd moves such a track by 360 each run), so that a
     sentence changing neither the fix nor the DOPs need not run it again."""
     dop = st.sky.dop
-    st._dops = dict(dop)
+    st._dops = dop.copy()
     fix = st.fix
     t = fix.time_ns
     old = st.oldfix
@@ -213,7 +220,8 @@ def error_model(st: Session, new: dict) -> None:
             fix.speed_args = (lat, lon, old.lat, old.lon, dt)
         if (mode >= MODE_3D and old.mode >= MODE_3D and fix.climb is None
                 and fix.alt_hae is not None and old.alt_hae is not None):  # fmt: skip
-            fix.climb = _sane((fix.alt_hae - old.alt_hae) / dt)
+            climb = (fix.alt_hae - old.alt_hae) / dt
+            fix.climb = None if abs(climb) > _MAX_RATE else climb  # (_sane)
     if t and fix.ept is None:
         fix.ept = 0.005
     if mode < MODE_2D:

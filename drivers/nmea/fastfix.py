@@ -1,10 +1,11 @@
-"""The fast path's readers of the sentences that give the position: GGA and RMC.
+"""The fast path's readers of the sentences that give the position: GGA, RMC and GLL.
 
 Same contract as :mod:`drivers.nmea.fastpath` (the other readers, and the rules they
 share): the ordinary sentence read and merged in one pass, anything else the reference
-way (Session.parse / Session.apply, with handlers.gga and handlers.rmc) before any state
-changes. Both start a new cycle when their time of day differs from the last one
-registered, which ends the epoch (EpochCombiner.new_epoch) before their data is merged.
+way (Session.parse / Session.apply, with handlers.gga, handlers.rmc and handlers.gll)
+before any state changes. GGA and RMC start a new cycle when their time of day differs
+from the last one registered, which ends the epoch (EpochCombiner.new_epoch) before their
+data is merged; a GLL that would start one takes the reference path.
 """
 
 from __future__ import annotations
@@ -28,7 +29,15 @@ from drivers.nmea.fastpath import (
 )
 from drivers.nmea.fields import _FAA, atoi, fnum, latlon, read_number
 from drivers.nmea.fields import NUMBERS as nums
-from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, gga_fix, rmc_fix
+from drivers.nmea.fixstate import (
+    MODE_2D,
+    MODE_3D,
+    MODE_NO_FIX,
+    MODE_NOT_SEEN,
+    STATUS_GPS,
+    gga_fix,
+    rmc_fix,
+)
 from drivers.nmea.handlers import _GGA_STATUS, KNOTS_TO_MPS
 from drivers.nmea.session import DAY_NS, ROLLOVER_S
 
@@ -120,36 +129,18 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     else:
         comb._pending = True
         comb._snap = None
-        changed = False
-        if time_ns is not None:
-            if not time_ns and st.lastfix is fix:
-                st.lastfix = fix.copy()
-            if fix.time_ns != time_ns:
-                fix.time_ns = time_ns
-                changed = True
+        changed = _merge(st, fix, time_ns, lat, lon, mode, status)
         if hdop is not None:
             sky.dop["hdop"] = hdop
         st.quality, st.gga_sats = quality, sats
         if sky.used_count != sats:
             sky.used_count = sats
             sky.changed = True
-        if fix.lat != lat:
-            fix.lat = lat
-            changed = True
-        if fix.lon != lon:
-            fix.lon = lon
-            changed = True
         if sep is not None and fix.geoid_sep != sep:
             fix.geoid_sep = sep
             changed = True
         if alt is not None and fix.alt_msl != alt:
             fix.alt_msl = alt
-            changed = True
-        if fix.mode != mode:
-            fix.mode = mode
-            changed = True
-        if fix.status < status:
-            fix.status = status
             changed = True
         if age is not None and (fix.dgps_age != age or fix.dgps_station != station):
             fix.dgps_age, fix.dgps_station = age, station
@@ -182,6 +173,32 @@ def _new_epoch(comb: EpochCombiner, out: list) -> None:
     comb._ender = comb._last_timed
     comb._last_timed = None
     comb._reported = False
+
+
+def _merge(st: Session, fix: Fix, time_ns, lat: float, lon: float, mode: int, status: int) -> bool:
+    """merge's comparisons of a position sentence's time (None: it sets none), position,
+    mode and status (upwards only) with the fix's, which takes what differs; whether
+    anything did. A time of 0 leaves the last fix as it was (Session.apply's copy)."""
+    changed = False
+    if time_ns is not None:
+        if not time_ns and st.lastfix is fix:
+            st.lastfix = fix.copy()
+        if fix.time_ns != time_ns:
+            fix.time_ns = time_ns
+            changed = True
+    if fix.lat != lat:
+        fix.lat = lat
+        changed = True
+    if fix.lon != lon:
+        fix.lon = lon
+        changed = True
+    if fix.mode != mode:
+        fix.mode = mode
+        changed = True
+    if fix.status < status:
+        fix.status = status
+        changed = True
+    return changed
 
 
 def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
@@ -258,18 +275,8 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     else:
         comb._pending = True
         comb._snap = None
-        changed = moved = False  # (moved: the speed, track or variation changed)
-        if not time_ns and st.lastfix is fix:
-            st.lastfix = fix.copy()
-        if fix.time_ns != time_ns:
-            fix.time_ns = time_ns
-            changed = True
-        if fix.lat != lat:
-            fix.lat = lat
-            changed = True
-        if fix.lon != lon:
-            fix.lon = lon
-            changed = True
+        changed = _merge(st, fix, time_ns, lat, lon, mode, newstatus)
+        moved = False  # (the speed, track or variation changed)
         if speed_set and fix.speed != speed:
             fix.speed = speed
             moved = True
@@ -279,12 +286,6 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         if magvar is not None and fix.magvar != magvar:
             fix.magvar = magvar
             moved = True
-        if fix.mode != mode:
-            fix.mode = mode
-            changed = True
-        if fix.status < newstatus:
-            fix.status = newstatus
-            changed = True
         if changed or sky.dop != st._dops or st._unnormed:
             error_model(st, _NONE)
         elif moved:
@@ -296,10 +297,65 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         comb._report(out)
 
 
+def gll(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
+    """A valid GLL (A, a position and a time) of an epoch under way; any other the
+    reference way (a GLL that starts a cycle too)."""
+    f = rest.split(",")
+    n = len(f)
+    if n < 6:
+        return reference(rest, stamp, out, comb, talker, "GLL")
+    f4 = f[4]
+    if not f4 or f[5][:1] != "A" or (n >= 7 and f[6][:1] == "N"):
+        return reference(rest, stamp, out, comb, talker, "GLL")
+    st = comb.session
+    ns, frac = _TIMES.get(f4) or _time(f4)
+    last = st.this_frac
+    if ns is None or frac is None or last is None or abs(frac - last) > 0.01:
+        return reference(rest, stamp, out, comb, talker, "GLL")  # (no time, a new cycle)
+    pos = latlon(f[0], f[1], f[2], f[3])
+    if pos is None:
+        return reference(rest, stamp, out, comb, talker, "GLL")
+    # --- the ordinary GLL from here on (Session.parse, handlers.gll)
+    tod = st.tod_ns
+    if tod is not None and ns < tod and ns // HOUR_NS < tod // HOUR_NS:
+        st.day += 1  # (Session.merge_hhmmss: the hour went back, past midnight)
+    st.tod_ns = ns
+    st.last_frac = last
+    st.this_frac = frac
+    st.latch_frac = True
+    st.gsx_more = False
+    sky = st.sky
+    sky.last_gsv_talker = sky.last_gsa_talker = ""
+    fix = st.fix
+    old = st.oldfix
+    if fix.alt_hae is not None or fix.alt_msl is not None or sky.used_count > 3:
+        mode = MODE_3D
+    elif fix.mode < MODE_2D or (old.alt_hae is None and old.alt_msl is None):
+        mode = MODE_2D
+    else:
+        mode = MODE_NOT_SEEN  # (the GLL gives no mode: merge's default)
+    if fix.mode == MODE_3D and st._had_altitude():
+        mode = MODE_3D  # (Session.parse: not dropped from 3D)
+    status = _FAA.get(f[6][:1], 1) if n >= 7 else STATUS_GPS  # (fields.faa_status)
+    lat, lon = pos
+    # --- EpochCombiner.add_into and Session.apply
+    comb._pending = True
+    comb._snap = None
+    time_ns = None if st.date is None else st.day * DAY_NS + ns
+    if _merge(st, fix, time_ns, lat, lon, mode, status) or sky.dop != st._dops or st._unnormed:
+        error_model(st, _NONE)
+    comb._stamp_ns = stamp
+    comb._talker = talker
+    comb._last_timed = "GLL"  # (EpochCombiner.timed)
+    if comb._ender == "GLL" and not comb._reported:
+        comb._report(out)
+
+
 # type -> its fast reader (the talker does not matter; proprietary sentences have none)
 FAST: dict[str, Callable[..., None]] = {
     "GGA": gga,
     "RMC": rmc,
+    "GLL": gll,
     "GSA": gsa,
     "GSV": gsv,
     "VTG": vtg,

@@ -101,7 +101,9 @@ def gsa(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         if len(_GSA) >= _CACHE_MAX:
             _GSA.clear()
         _GSA[key] = read
-    if not read or st.latch_mode:
+    if not read:
+        return _short_gsa(stamp, comb)
+    if st.latch_mode:
         return reference(rest, stamp, out, comb, talker, "GSA")
     # --- the ordinary GSA from here on (Session.parse, Sky.gsa)
     st.latch_frac = st.gsx_more = False
@@ -122,6 +124,19 @@ def gsa(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
     elif comb._pending and comb._snap is None:  # (the new data: the mode)
         comb._snap = fix.copy()
     if changed or sky.dop != st._dops or st._unnormed:
+        error_model(st, _NONE)
+    comb._stamp_ns = stamp
+
+
+def _short_gsa(stamp: int, comb: EpochCombiner) -> None:
+    """A GSA of fewer fields than gpsd reads (an old receiver's without a fix: Garmin's
+    ``$GPGSA,A,1,,,,,,,,,,,,,,,``): counted malformed and read no further, as the
+    reference path does (Session.parse and apply with no data)."""
+    st = comb.session
+    st.malformed += 1
+    st.latch_frac = st.gsx_more = False
+    st.sky.last_gsv_talker = ""
+    if st.sky.dop != st._dops or st._unnormed:
         error_model(st, _NONE)
     comb._stamp_ns = stamp
 

@@ -12,8 +12,7 @@ did not give are computed from the unit vectors to the satellites used (gpsd's
 
 from __future__ import annotations
 
-import math
-
+from drivers.nmea.dops import geometry_dops
 from drivers.nmea.fields import atoi, number
 from drivers.nmea.fixstate import DOP_SET, MODE_SET, SATELLITE_SET, USED_IS
 from drivers.nmea.memo import table
@@ -104,10 +103,12 @@ def _gsa_fields(
                 dops[name] = v
     gnss = _TALKER_GNSS.get(talker[1:2], 0)
     prns = []
-    for i in range(2, count - 4):
-        num = _INTS.get(f[i])
+    for field in f[2 : count - 4]:
+        num = _INTS.get(field)
         if num is None:
-            num = atoi(f[i])
+            if not field:  # (an empty field: atoi's 0)
+                continue
+            num = atoi(field)
         if num >= 1:
             prn = nmea_prn(talker, num, gnss)[0]
             if prn > 0:
@@ -121,19 +122,29 @@ def _gsa_fields(
 # epoch that repeats its fields): GpsSatellite(prn, gnss_id, sv_id, el, az, ss, used).
 _satellite = positional_constructor(GpsSatellite)
 _SATS: dict[tuple, tuple] = table({})  # (talker, gnss, its four fields) -> _sat_entry(...)
-_WHOLES = {k: float(v) for k, v in _INTS.items()} | {"": None}  # ... and _whole
+_WHOLES = {k: float(v) for k, v in _INTS.items()}  # (the numbers of _sat_entry)
 
 
-def _sat_entry(talker: str, gnss: int, num: int, f: tuple[str, ...] | list[str], k: int) -> tuple:
-    """One GSV satellite (``f[k:k+3]`` its elevation, azimuth and signal to noise):
-    (PRN, whether a GSA may mark it used, the satellite not used, the satellite used, its
-    (azimuth, elevation) if fill_dop may use them, else None)."""
+def _sat_entry(talker: str, gnss: int, num: int, fields: tuple[str, ...] | list[str]) -> tuple:
+    """One GSV satellite (``fields``: its elevation, azimuth and signal to noise, fewer at
+    the end of a sentence): (PRN, whether a GSA may mark it used, the satellite not used,
+    the satellite used (None when no GSA may mark it so), its (azimuth, elevation) if
+    fill_dop may use them, else None). The numbers as gpsd reads them: the integer part,
+    None for an empty field."""
     prn, ubx, sv = nmea_prn(talker, num, gnss)
-    el, az, ss = _whole(f, k), _whole(f, k + 1), _whole(f, k + 2)
+    e, a, s = fields if len(fields) == 3 else (*fields, "", "", "")[:3]
+    el, az, ss = _WHOLES.get(e), _WHOLES.get(a), _WHOLES.get(s)  # (None: "", or not read)
+    if el is None and e:
+        el = float(atoi(e))
+    if az is None and a:
+        az = float(atoi(a))
+    if ss is None and s:
+        ss = float(atoi(s))
     usable = prn > 0 and ss is not None and ss > 0
     seen = az is not None and 0 <= az <= 359 and el is not None and abs(el) <= 90
     return (prn, usable, _satellite(prn, ubx, sv, el, az, ss, False),
-            _satellite(prn, ubx, sv, el, az, ss, True), (az, el) if seen else None)  # fmt: skip
+            _satellite(prn, ubx, sv, el, az, ss, True) if usable else None,
+            (az, el) if seen else None)  # fmt: skip
 
 
 def _gsv_fields(talker: str, f: tuple[str, ...] | list[str]) -> tuple:
@@ -162,12 +173,12 @@ def _gsv_fields(talker: str, f: tuple[str, ...] | list[str]) -> tuple:
         if num == 0:
             sats.append(None)
             continue
-        key = (talker, gnss, field, *f[k : k + 3])
+        key = (talker, gnss, *f[k - 1 : k + 3])  # (its PRN, elevation, azimuth, signal)
         sat = _SATS.get(key)
         if sat is None:
             if len(_SATS) >= 512:
                 _SATS.clear()
-            sat = _SATS[key] = _sat_entry(talker, gnss, num, f, k)
+            sat = _SATS[key] = _sat_entry(talker, gnss, num, key[3:])
         sats.append(sat)
         k += 3
     return (sigid, atoi(f[0]), part, tuple(sats))
@@ -281,12 +292,14 @@ class Sky:
         view = self.view
         geometry = self.geometry
         used = self.used_prns
+        room = MAXCHANNELS - len(view)
         for sat in sats:
-            if len(view) >= MAXCHANNELS:
+            if room <= 0:
                 self.zero()  # (the loop's view is still the full one, as in gpsd)
                 break
             if sat is None:
                 continue
+            room -= 1
             if sat[1] and sat[0] in used:
                 view.append(sat[3])
                 if sat[4] is not None:
@@ -295,7 +308,10 @@ class Sky:
                 view.append(sat[2])
         if self.part < self.awaited:
             return 0, True
-        if not any(s.azimuth_deg != 0 for s in view):
+        for s in view:
+            if s.azimuth_deg != 0:
+                break
+        else:  # (no satellite with an azimuth)
             self.zero()
             return 0, False
         self.complete = True
@@ -310,7 +326,7 @@ class Sky:
         key = tuple(self.geometry)
         dops = _DOPS.get(key)
         if dops is None:
-            dops = _geometry_dops(key)
+            dops = geometry_dops(key)
             if len(_DOPS) >= 64:
                 _DOPS.clear()
             _DOPS[key] = dops
@@ -321,68 +337,3 @@ class Sky:
 
 
 _DOPS: dict[tuple, tuple] = table({})  # the (azimuth, elevation) of the satellites used -> DOPs
-
-
-def _geometry_dops(az_el: tuple[tuple[float, float], ...]) -> tuple[tuple[str, float], ...]:
-    """The DOPs of satellites at these azimuths and elevations (degrees), each as (name,
-    value), those a singular geometry (or fewer than 4 satellites) leaves out omitted:
-    the diagonal of the inverse of the normal matrix of the unit vectors (east, north,
-    up, 1), by Gauss-Jordan elimination with partial pivoting. The matrix's sums run in
-    the satellites' order (it is symmetric: 10 of them)."""
-    if len(az_el) < 4:
-        return ()
-    xx = xy = xz = xw = yy = yz = yw = zz = zw = ww = 0.0
-    for az, el in az_el:
-        a, e = math.radians(az), math.radians(el)
-        ce = math.cos(e)
-        x, y, z = math.sin(a) * ce, math.cos(a) * ce, math.sin(e)
-        xx += x * x
-        xy += x * y
-        xz += x * z
-        xw += x
-        yy += y * y
-        yz += y * z
-        yw += y
-        zz += z * z
-        zw += z
-        ww += 1.0
-    m = [
-        [xx, xy, xz, xw, 1.0, 0.0, 0.0, 0.0],
-        [xy, yy, yz, yw, 0.0, 1.0, 0.0, 0.0],
-        [xz, yz, zz, zw, 0.0, 0.0, 1.0, 0.0],
-        [xw, yw, zw, ww, 0.0, 0.0, 0.0, 1.0],
-    ]
-    for c in range(4):
-        p, best = c, abs(m[c][c])  # (the first row of the largest magnitude)
-        for r in range(c + 1, 4):
-            v = abs(m[r][c])
-            if v > best:
-                p, best = r, v
-        if best < 1e-12:
-            return ()
-        m[c], m[p] = m[p], m[c]
-        row = m[c]
-        piv = row[c]
-        row = m[c] = [x / piv for x in row]
-        for r in range(4):
-            if r != c:
-                mr = m[r]
-                k = mr[c]
-                if k != 0.0:
-                    m[r] = [x - k * y for x, y in zip(mr, row, strict=True)]
-    d0, d1, d2, d3 = m[0][4], m[1][5], m[2][6], m[3][7]
-    computed = (("xdop", d0), ("ydop", d1), ("hdop", d0 + d1), ("vdop", d2),
-                ("pdop", d0 + d1 + d2), ("tdop", d3), ("gdop", d0 + d1 + d2 + d3))  # fmt: skip
-    return tuple((name, math.sqrt(v)) for name, v in computed if v >= 0.0)
-
-
-def _whole(f: tuple[str, ...] | list[str], i: int) -> float | None:
-    """A GSV number as gpsd reads it: the integer part, None when the field is empty."""
-    v = f[i] if i < len(f) else ""
-    w = _WHOLES.get(v, _NOT_READ)
-    if w is _NOT_READ:
-        return float(atoi(v))
-    return w  # type: ignore[return-value]
-
-
-_NOT_READ = object()
