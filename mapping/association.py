@@ -73,9 +73,9 @@ from mapping.association_config import AssociationConfig
 from mapping.beam_model import BeamModel, FieldBeamModel, pair_ratio
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.heading_drift import Adoption, DriftBank, drifted_step
-from mapping.ir_inverse import KIND_HIT, KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
+from mapping.ir_inverse import KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
 from mapping.loop_correction import HeldOut, check_loop
-from mapping.loop_graph import LoopGraph
+from mapping.loop_graph import LoopGraph, occupied_cells, rebuilt_map, scan_hits, window_ends
 from mapping.pose_samples import spread
 from mapping.reinsertion import Rebuild, Snapshot, keep_snapshot, realign
 from mapping.scan_records import ScanRecords
@@ -234,11 +234,9 @@ class SampleAssociation:
             self.graph_outcome = "no loop edge" if g is not None else "off"
             return self.grid
         r = self._rec
-        grid = OccupancyGrid(self._grid_config)
-        for a in range(0, len(r), 200):
-            b = min(a + 200, len(r))
-            self.cell_updates += self.model.integrate(grid, r.beams(a, b, new[a:b]), "off")
-        occ_old, occ_new = int((self.grid.trinary() == 1).sum()), int((grid.trinary() == 1).sum())
+        grid, updates = rebuilt_map(r, new, self.model, self._grid_config)
+        self.cell_updates += updates
+        occ_old, occ_new = occupied_cells(self.grid), occupied_cells(grid)
         self.graph_outcome = (f"{len(g.loops)} loop edges, {len(set(g.scans))} nodes: "
                               f"occupied cells {occ_old} -> {occ_new}")  # fmt: skip
         if occ_new > occ_old:
@@ -291,14 +289,8 @@ class SampleAssociation:
             keep_snapshot(self._snaps, n, self._travel, self.grid, cfg)
         r.append(self._estimate.copy(), sigma, ranges, kinds, self._travel, stamp_ns)
         if self._graph is not None:
-            hit = kinds == KIND_HIT
-            rng = np.where(hit, ranges, np.nan)
-            m = self.mounts
-            hits = np.column_stack(
-                [m[:, 0] + rng * np.cos(m[:, 2]), m[:, 1] + rng * np.sin(m[:, 2])]
-            )
             self._graph.record(self._step_in, self._drift, self._travel, self._turn,
-                               self._prev_var, hits)  # fmt: skip
+                               self._prev_var, scan_hits(self.mounts, ranges, kinds))  # fmt: skip
         if self._bank is not None:
             self._bank.record()
         self.cell_updates += self.model.integrate(self.grid, r.beams(n, n + 1), "keep")
@@ -348,12 +340,8 @@ class SampleAssociation:
         post = check.posterior
         edge = None
         if self._graph is not None and post is not None:
-            sens, ranges, kinds = window
-            at = compose(np.broadcast_to(post.mean, sens.shape), sens)[kinds == KIND_HIT]
-            rh = ranges[kinds == KIND_HIT]
-            ends = at[:, :2] + rh[:, None] * np.column_stack([np.cos(at[:, 2]), np.sin(at[:, 2])])
             edge = self._graph.loop_edge(len(self._rec) - 1, post.mean, post.cov,
-                                         self._rec.poses, ends)  # fmt: skip
+                                         self._rec.poses, window_ends(post.mean, *window))  # fmt: skip
         if check.report.outcome == "confirmed" and post is not None:
             # The evidence agrees with the estimate: the cloud becomes the posterior (the
             # information is kept; the estimate is not moved).

@@ -53,7 +53,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.association_config import AssociationConfig
+from mapping.grid import GridConfig, OccupancyGrid
+from mapping.ir_inverse import KIND_HIT, IrInverseModel
 from mapping.pose_graph import PoseGraph
+from mapping.scan_records import ScanRecords
 from mapping.se2 import compose, relative, wrap
 
 LOOP_HEADING_SD = 1.0  # rad: the loop edges carry no heading (module doc)
@@ -225,3 +228,40 @@ class LoopGraph:
             out[idx, 2] = pa[:, 2] + f * wrap(pb[:, 2] - pa[:, 2])
         out[nodes[-1]] = x[-1]
         return out
+
+
+def scan_hits(mounts: np.ndarray, ranges: np.ndarray, kinds: np.ndarray) -> np.ndarray:
+    """A scan's hits in the robot frame, (K, 2); NaN where a beam hit nothing."""
+    rng = np.where(kinds == KIND_HIT, ranges, np.nan)
+    return np.column_stack(
+        [mounts[:, 0] + rng * np.cos(mounts[:, 2]), mounts[:, 1] + rng * np.sin(mounts[:, 2])]
+    )
+
+
+def window_ends(
+    mean: np.ndarray, sens: np.ndarray, ranges: np.ndarray, kinds: np.ndarray
+) -> np.ndarray:
+    """The window's hits in the world at the posterior's mean ``mean`` (sensor poses
+    ``sens`` in the robot frame at each scan of the window), (H, 2)."""
+    hit = kinds == KIND_HIT
+    at = compose(np.broadcast_to(mean, sens.shape), sens)[hit]
+    return at[:, :2] + ranges[hit][:, None] * np.column_stack([np.cos(at[:, 2]), np.sin(at[:, 2])])
+
+
+def rebuilt_map(
+    rec: ScanRecords, poses: np.ndarray, model: IrInverseModel, config: GridConfig,
+    batch: int = 200,
+) -> tuple[OccupancyGrid, int]:  # fmt: skip
+    """Every recorded scan inserted again at ``poses`` into a new grid, ``batch`` scans
+    at a time (bounded memory); the grid and its cell updates."""
+    grid, updates = OccupancyGrid(config), 0
+    for a in range(0, len(rec), batch):
+        b = min(a + batch, len(rec))
+        updates += model.integrate(grid, rec.beams(a, b, poses[a:b]), "off")
+    return grid, updates
+
+
+def occupied_cells(grid: OccupancyGrid) -> int:
+    """The cells a map calls occupied (its walls' extent: the same walls drawn from
+    poses that agree take fewer)."""
+    return int((grid.trinary() == 1).sum())
