@@ -216,3 +216,35 @@ def test_true_heading_floor_is_exact_when_the_odometry_is(
     np.testing.assert_allclose(got[:, :2], log.reference[:, :2], atol=1e-9)
     real = np.array([[p.x, p.y] for p in bench.true_heading_poses(run)])
     assert np.hypot(*(real - log.reference[:, :2]).T).max() > 0.01  # the log's distance error
+
+
+def test_odometry_scale_bench_measures_the_scale_ahead(shared_dir: Path) -> None:
+    """``bench/odometry_scale.py``: the plane two forward beams see gives its distance and
+    normal exactly; on the Intel log's first 4,000 scans the clean stretches (a wall ahead
+    over a metre) give the reference's distance per odometry distance within 2 %; a
+    layout without two beams ahead finds none."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "odometry_scale", ROOT / "bench" / "odometry_scale.py"
+    )
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    mounts = np.array([[0.2, 0.05, 15 * DEG], [0.2, -0.05, -15 * DEG], [0.0, 0.2, 90 * DEG]])
+    assert bench.front_pair(mounts) == (1, 0)
+    # a wall across the heading 3 m ahead (x = 3 in the robot frame): D = 3, normal at 0
+    ranges = np.array([(3.0 - 0.2) / np.cos(15 * DEG)] * 2 + [1.0])
+    dist, angle = bench.plane(mounts, ranges, 1, 0)
+    assert dist == pytest.approx(3.0) and angle == pytest.approx(0.0, abs=1e-12)
+    assert bench.front_pair(mounts[[0, 2]]) is None
+    for argv, clean in (([str(INTEL), "--scans", "4000"], True),
+                        ([str(INTEL), "--scans", "4000", "--mounts", "0.2,0,0;0,0.2,90"], False)):  # fmt: skip
+        proc = subprocess.run(["python3", str(ROOT / "bench" / "odometry_scale.py"), *argv],
+                              capture_output=True, text=True, timeout=120, env=hilnav_env())  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        rep = json.loads(proc.stdout.strip().splitlines()[-1])
+        if clean:
+            assert rep["events_clean"] >= 1 and rep["k_err_median_clean"] < 0.02
+        else:
+            assert rep["front_pair"] is None and rep["events"] == 0
