@@ -15,7 +15,8 @@ the IR mounts, 1-5.5 m), this finds every stretch of at least ``--min-scans`` sc
 apart) hit one plane (its normal within 8 deg of the first, the heading within 3 deg)
 with |cos a| >= 0.7, fits D against the odometry's distance, and compares k with the
 reference poses' distance per odometry distance over the same scans. A stretch is clean
-when the fit's residual is below ``--clean-m`` (the plane is one plane).
+when the fit's residual is below ``--clean-m``; that is not proof of one plane: two beams
+on the two sides of a passage fit a line too, one that moves with the robot (k near 0).
 
 Prints a row per stretch and, the LAST line, a JSON object (``events``,
 ``events_clean``, ``k_err_median_clean``: the median |k - k_reference| of the clean
