@@ -149,9 +149,7 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
             error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
-    comb._last_timed = "GGA"  # (EpochCombiner.timed)
-    if comb._ender == "GGA" and not comb._reported:
-        comb._report(out)
+    comb.timed("GGA", out)
 
 
 def _motion(st: Session, fix: Fix, unknown_speed: bool) -> None:
@@ -292,9 +290,7 @@ def rmc(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
             _motion(st, fix, speed_set and speed is None)
     comb._stamp_ns = stamp
     comb._talker = talker
-    comb._last_timed = "RMC"  # (EpochCombiner.timed)
-    if comb._ender == "RMC" and not comb._reported:
-        comb._report(out)
+    comb.timed("RMC", out)
 
 
 def gll(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> None:
@@ -346,9 +342,7 @@ def gll(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
-    comb._last_timed = "GLL"  # (EpochCombiner.timed)
-    if comb._ender == "GLL" and not comb._reported:
-        comb._report(out)
+    comb.timed("GLL", out)
 
 
 # type -> its fast reader (the talker does not matter; proprietary sentences have none)

@@ -278,9 +278,7 @@ def zda(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         error_model(st, _NONE)
     comb._stamp_ns = stamp
     comb._talker = talker
-    comb._last_timed = "ZDA"  # (EpochCombiner.timed)
-    if comb._ender == "ZDA" and not comb._reported:
-        comb._report(out)
+    comb.timed("ZDA", out)
 
 
 def _zda_date(tail: str) -> tuple:

@@ -119,6 +119,14 @@ class ViewMemo:
         self._last[topic] = (msg, tuple(records))
 
 
+def _schema_name(cls: type) -> str:
+    """``msgs.schema_name(cls)``, looked up once per class."""
+    name = _SCHEMA_NAMES.get(cls)
+    if name is None:
+        name = _SCHEMA_NAMES[cls] = msgs.schema_name(cls)
+    return name
+
+
 class Encoder:
     """``encode(topic, msg)``: the native record and its Foxglove views (thread-safe).
 
@@ -136,17 +144,11 @@ class Encoder:
 
     def encode(self, topic: str, msg: Any) -> list[Record]:
         cls = type(msg)
-        name = _SCHEMA_NAMES.get(cls)
-        if name is None:
-            name = _SCHEMA_NAMES[cls] = msgs.schema_name(cls)
+        name = _schema_name(cls)
         memo = self.memo
         if memo is not None and self.views and cls in memo.classes:
             return self._shared(memo, topic, name, msg)
-        out = [Record(topic, name, msgs.encode(msg), cls)]
-        if self.views and foxglove.may_have_views(cls):
-            with self._lock:
-                out.extend(self._views(topic, msg))
-        return out
+        return [Record(topic, name, msgs.encode(msg), cls), *self.views_of(topic, msg)]
 
     @property
     def splits(self) -> bool:
@@ -158,10 +160,7 @@ class Encoder:
         """The native record alone (its views later, in the messages' order, by
         :meth:`views_of`): what a put needs at once."""
         cls = type(msg)
-        name = _SCHEMA_NAMES.get(cls)
-        if name is None:
-            name = _SCHEMA_NAMES[cls] = msgs.schema_name(cls)
-        return Record(topic, name, msgs.encode(msg), cls)
+        return Record(topic, _schema_name(cls), msgs.encode(msg), cls)
 
     def views_of(self, topic: str, msg: Any) -> list[Record]:
         """The Foxglove views :meth:`encode` would add to the native record."""
