@@ -29,7 +29,7 @@ from typing import Any
 
 from hilnav.bus import Bus, ZenohSettings
 from hilnav.config import RobotConfig
-from hilnav.devices import make_drivers, with_fake_ports
+from hilnav.devices import DEVICES, make_drivers, with_fake_ports
 from hilnav.devloop import DeviceLoop
 from hilnav.fakeset import FakeProcess, FakeProcessError
 from hilnav.motion import MotionGuard
@@ -45,6 +45,11 @@ DaemonStats = RuntimeStats
 # device messages the loop logs and publishes at once (the others in batches, at most
 # every 0.1 s): odometry goes out before the pose made of it (the log's views need it)
 PROMPT_TOPICS = frozenset({"odometry", "info"})
+# devices the loop reads at each of its turns instead of being woken by them (those with
+# no prompt topic: the gyro's 100 packets a second come in batches, before each SIP)
+POLLED_DEVICES = frozenset(
+    d.name for d in DEVICES.values() if not {DEVICE_TOPICS[m] for m in d.messages} & PROMPT_TOPICS
+)
 # queued by Zenoh's callbacks and the watchdog, taken at the loop's next turn (no wake-up
 # of their own): logged only (truth, cmd_vel: the wheels got it in the callback), or
 # used by cooperative localization at its next step (peers' boxes, liveliness: topic "")
@@ -82,6 +87,7 @@ class Daemon:
             self.runtime,
             read_device=self._read_device,
             prompt_topics=PROMPT_TOPICS,
+            polled=POLLED_DEVICES,
             start_thread=lambda name, drv: self._thread(self._reader, f"dev-{name}", name, drv),
             heartbeat=self.motion.heartbeat,
             on_tick=self._tick,

@@ -18,6 +18,16 @@ watchdog's stops) is queued. The loop takes the queue before each read and at ea
 so everything is handled by one consumer in arrival order; a queue entry that must not
 wait (a device thread's read, below) also wakes the loop through the pipe.
 
+A device of ``polled`` (the daemon's: every device but the Pioneer, whose SIP releases
+the pose) does not wake the loop: its descriptor sits on a second epoll that the loop asks,
+without waiting, at every turn, and what it holds is read before the turn's other reads
+(so the gyro's packets up to a SIP come before the SIP). The loop turns at least every
+``tick_s`` (plus ``slack_s``) anyway, for its timers, so a polled device is read in
+batches of that age at most: the 100 Hz gyro's packets come five at a time, and the
+loop wakes about 30 times a second (SIPs, ticks) instead of about 150. A read of several
+packets stamps them as one burst, which the fusion front end takes as it takes a USB
+adapter's bursts (fusion.arrival rule 1; the gyro's angles telescope).
+
 A device without a descriptor to wait on (a pyserial URL such as ``socket://``, a file of
 recorded bytes, a python-can interface other than slcan) and a device whose link is down
 are read by a thread of their own, as before: a blocking ``read(timeout)`` in a loop, the
@@ -33,7 +43,7 @@ and its silence check, which drops a dead link); the loop's heartbeat to the mot
 watchdog at least every ``beat_s`` (the loop wakes for it when nothing else comes); and
 the callers' periodic work (``on_tick``: peer expiry, diagnostics) every ``tick_s``. A
 timer that falls due waits up to ``slack_s`` for the next device read to wake the loop
-(the gyro's, every 10 ms) instead of waking it on its own.
+(a SIP's, every 0.1 s) instead of waking it on its own.
 """
 
 from __future__ import annotations
@@ -116,6 +126,7 @@ class DeviceLoop:
         tick_s: float = 0.05,
         batch_s: float = 0.1,
         slack_s: float = 0.02,
+        polled: frozenset[str] = frozenset(),
     ) -> None:
         self.runtime = runtime
         self.read_device = read_device
@@ -129,10 +140,13 @@ class DeviceLoop:
         self.tick_s = tick_s
         self.batch_s = batch_s
         self.slack_s = slack_s
+        self.polled = polled
         self.wake = WakePipe()
         self._poller = select.epoll()  # (select.poll would busy-loop on a regular file)
         self._poller.register(self.wake.rfd, select.EPOLLIN)
         self._by_fd: dict[int, tuple[str, Any]] = {}
+        self._poll_later = select.epoll()  # the polled devices' descriptors: never waited on
+        self._polled_fds: set[int] = set()
         self._adopted: list[tuple[str, Any]] = []  # handed over by threads, not yet looped
         self._adopt_lock = threading.Lock()
         # name -> [driver, its descriptor, monotonic time of its last read]
@@ -165,6 +179,7 @@ class DeviceLoop:
         finally:
             for name in list(self._looped):
                 self._unregister(name)
+            self._poll_later.close()
             self._poller.close()  # the wake pipe is closed by the owner, after the producers
 
     def _run(self) -> None:
@@ -195,7 +210,13 @@ class DeviceLoop:
             due = min(due, self._backlog_since + self.batch_s)
         # timers wait up to slack_s for a device's wake-up rather than make their own
         timeout = min(max(0.0, due - now) + self.slack_s, self.beat_s)
-        for fd, _ in self._poller.poll(timeout):
+        events = self._poller.poll(timeout)
+        if self._polled_fds:  # the polled devices first: the gyro up to a SIP before it
+            for fd, _ in self._poll_later.poll(0):
+                entry = by_fd.get(fd)
+                if entry is not None and entry[0] in looped:
+                    self._read(entry[0], entry[1])
+        for fd, _ in events:
             if fd == self.wake.rfd:  # a prompt queue entry (a device thread's read)
                 self.wake.clear()
                 if self._adopted:
@@ -271,7 +292,11 @@ class DeviceLoop:
             try:
                 if fd is None or fd in self._by_fd:
                     raise ValueError("no descriptor of its own")
-                self._poller.register(fd, select.EPOLLIN)
+                if name in self.polled:
+                    self._poll_later.register(fd, select.EPOLLIN)
+                    self._polled_fds.add(fd)
+                else:
+                    self._poller.register(fd, select.EPOLLIN)
             except (ValueError, OSError):
                 self.start_thread(name, drv)  # not selectable after all: a thread reads it
                 continue
@@ -284,8 +309,12 @@ class DeviceLoop:
         if entry is None:
             return
         self._by_fd.pop(entry[1], None)
+        poller = self._poller
+        if entry[1] in self._polled_fds:
+            self._polled_fds.discard(entry[1])
+            poller = self._poll_later
         with contextlib.suppress(ValueError, OSError):  # closed with the link: gone already
-            self._poller.unregister(entry[1])
+            poller.unregister(entry[1])
 
 
 def _false() -> bool:

@@ -73,6 +73,26 @@ def test_every_device_on_a_port_path_is_read_by_the_loop_not_a_thread(rig):
     assert d.loop.reads > 0 and d.loop.batches > 0
 
 
+def test_the_polled_devices_do_not_wake_the_loop_and_come_before_each_sip(rig):
+    """The gyro, IR board and GPS sit on the loop's second epoll (never waited on): the
+    100 Hz gyro is read several packets at a time, at the loop's turns (SIPs, ticks), yet
+    read before each SIP, so no odometry message waits for its gyro sample."""
+    d, _ = rig
+    assert d.loop.polled == {"gyro", "ir", "gps"}  # every device but the Pioneer
+    by_fd = {name: fd for fd, (name, _) in d.loop._by_fd.items()}
+    assert d.loop._polled_fds == {by_fd["gyro"], by_fd["ir"], by_fd["gps"]}
+    reads0, packets0, odo0 = count(d, "raw/gyro"), count(d, "gyro"), count(d, "odometry")
+    turns0 = d.loop.reads
+    assert _wait(lambda: count(d, "gyro") > packets0 + 200, 5.0)
+    reads, packets = count(d, "raw/gyro") - reads0, count(d, "gyro") - packets0
+    assert packets >= 2.5 * reads, (packets, reads)  # batches, not a wake-up per packet
+    assert d.loop.reads - turns0 < packets  # fewer reads in all than gyro packets
+    arrival = d.pipeline.heading.filter._align.arrival  # the heading filter's front end
+    waited = arrival.waited
+    assert _wait(lambda: count(d, "odometry") > odo0 + 15, 5.0)
+    assert arrival.waited == waited  # the gyro was always in before the SIP
+
+
 @pytest.mark.parametrize("device", ["gyro", "arcos"])
 def test_a_vanished_port_is_reconnected_by_a_thread_while_the_loop_reads_the_others(rig, device):
     d, emulators = rig
