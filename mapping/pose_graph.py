@@ -24,13 +24,20 @@ error s (iteratively reweighted: weight 1 / (1 + s / c^2)); c^2 = 11.34, chi-squ
 3 degrees of freedom at 99 %, so an edge that fits within its covariance keeps almost
 its full weight and one many sigmas off is down-weighted by s / c^2.
 
-Pure: numpy, and scipy.sparse inside :meth:`PoseGraph.optimize` (imported there: the
-daemon, which never solves a graph, does not load scipy).
+A graph of at most :data:`DENSE_NODES` nodes (a run of up to about 100 m) is solved in
+dense form by numpy's LU instead: the same normal equations, a few milliseconds, and no
+import of scipy.sparse, which costs 0.2-0.3 s (it loads numpy's whole array-API
+namespace) at the end of a short replay.
+
+Pure: numpy, and scipy.sparse inside :meth:`PoseGraph.optimize` for a graph beyond
+:data:`DENSE_NODES` (imported there: the daemon, which never solves a graph, and a short
+replay do not load scipy).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -130,13 +137,11 @@ class PoseGraph:
 
     def optimize(self, iterations: int = 30, c2: float = CAUCHY_C2, tol: float = 1e-6) -> Solution:
         """Levenberg-Marquardt from the nodes' poses, node 0 fixed (module doc)."""
-        from scipy import sparse  # only here: the daemon never solves a graph
-        from scipy.sparse.linalg import spsolve
-
         x = np.array(self.poses, dtype=float)
         n = len(x)
         if n < 2 or not self.edges:
             return Solution(x, 0.0, 0.0, 0, np.ones(len(self.edges)))
+        solve = _dense_damped if n <= DENSE_NODES else _sparse_damped()
         ii, jj, z, info, _ = self._arrays()
         cost, _, w = self.costs(x, c2)
         cost0, lam, done = cost, 1e-4, 0
@@ -160,18 +165,15 @@ class PoseGraph:
                 vals.append(blk)
             np.add.at(g, 3 * ii[:, None] + r3, np.einsum("eil,el->ei", at_om, err))
             np.add.at(g, 3 * jj[:, None] + r3, np.einsum("eil,el->ei", bt_om, err))
-            h = sparse.coo_matrix(
-                (np.concatenate([v.ravel() for v in vals]),
-                 (np.concatenate([r.ravel() for r in rows]),
-                  np.concatenate([c.ravel() for c in cols]))), shape=(3 * n, 3 * n)
-            ).tocsc()  # fmt: skip
-            hf, gf = h[3:, 3:], g[3:]
-            diag = np.maximum(hf.diagonal(), 1e-9)
+            entries = (np.concatenate([v.ravel() for v in vals]),
+                       np.concatenate([r.ravel() for r in rows]),
+                       np.concatenate([c.ravel() for c in cols]))  # fmt: skip
+            normal = solve(entries, 3 * n)
+            gf = g[3:]
             improved = False
             for _ in range(10):
-                try:
-                    dx = spsolve(hf + sparse.diags(lam * diag, format="csc"), -gf)
-                except RuntimeError:  # SuperLU: the matrix is singular
+                dx = normal(lam, -gf)
+                if dx is None:  # the damped matrix is singular
                     lam *= 10.0
                     continue
                 if not np.all(np.isfinite(dx)):
@@ -192,3 +194,50 @@ class PoseGraph:
             if not improved or step < tol or rel < 1e-9:
                 break
         return Solution(x, cost, cost0, done, w)
+
+
+DENSE_NODES = 150  # at most this many nodes: numpy's dense LU (a 447-square matrix, ~2 ms a solve)
+
+
+def _dense_damped(entries: tuple[np.ndarray, np.ndarray, np.ndarray], size: int) -> Any:
+    """The normal matrix summed from its 3 x 3 blocks, node 0's rows and columns dropped
+    (the gauge); returns ``solve(lam, rhs)`` of ``(H + lam diag(H)) dx = rhs``, None when
+    singular."""
+    vals, rows, cols = entries
+    h = np.zeros((size, size))
+    np.add.at(h, (rows, cols), vals)
+    hf = h[3:, 3:]
+    diag = np.maximum(np.diagonal(hf).copy(), 1e-9)
+    idx = np.diag_indices_from(hf)
+
+    def solve(lam: float, rhs: np.ndarray) -> np.ndarray | None:
+        m = hf.copy()
+        m[idx] += lam * diag
+        try:
+            return np.linalg.solve(m, rhs)
+        except np.linalg.LinAlgError:
+            return None
+
+    return solve
+
+
+def _sparse_damped() -> Any:
+    """As :func:`_dense_damped`, in sparse form (SuperLU), for a long run's graph."""
+    from scipy import sparse  # only here: a graph beyond DENSE_NODES
+    from scipy.sparse.linalg import spsolve
+
+    def build(entries: tuple[np.ndarray, np.ndarray, np.ndarray], size: int) -> Any:
+        vals, rows, cols = entries
+        h = sparse.coo_matrix((vals, (rows, cols)), shape=(size, size)).tocsc()
+        hf = h[3:, 3:]
+        diag = np.maximum(hf.diagonal(), 1e-9)
+
+        def solve(lam: float, rhs: np.ndarray) -> np.ndarray | None:
+            try:
+                return spsolve(hf + sparse.diags(lam * diag, format="csc"), rhs)
+            except RuntimeError:  # SuperLU: the matrix is singular
+                return None
+
+        return solve
+
+    return build

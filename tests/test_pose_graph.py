@@ -114,3 +114,26 @@ def test_a_chain_of_a_thousand_nodes_solves_in_sparse_form():
     sol = g.optimize()
     assert n == 1025 and sol.cost < sol.cost0
     assert np.hypot(*sol.poses[-1, :2]) < 0.05  # the loop is closed
+
+
+def test_the_dense_and_the_sparse_solve_agree(monkeypatch):
+    """A small graph is solved in dense form (no scipy import); the sparse form, which a
+    long run's graph takes, gives the same solution."""
+    import mapping.pose_graph as pg
+
+    def solved():
+        truth, meas = _square_loop(1.08, seed=3)
+        g, _ = _odometry_graph(meas)
+        n = len(truth)
+        g.add_edge(0, n - 1, relative(truth[0], truth[-1]), np.diag([400.0, 400.0, 1000.0]), True)
+        g.add_edge(8, n - 9, relative(truth[0], truth[-1]) + 0.3, np.eye(3) * 50.0, True)
+        return g.optimize()
+
+    assert len(_square_loop(1.0)[0]) <= pg.DENSE_NODES
+    dense = solved()
+    monkeypatch.setattr(pg, "DENSE_NODES", 0)
+    sparse = solved()
+    assert dense.iterations == sparse.iterations > 1
+    np.testing.assert_allclose(dense.poses, sparse.poses, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(dense.weights, sparse.weights, rtol=1e-9)
+    assert dense.cost == pytest.approx(sparse.cost, rel=1e-9)
