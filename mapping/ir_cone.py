@@ -180,15 +180,17 @@ def cone_cells(
 _TWO_PI_HI = math.ldexp(math.floor(math.ldexp(TWO_PI, 21)), -21)
 _TWO_PI_LO = TWO_PI - _TWO_PI_HI  # exact (Sterbenz)
 _Q_MAX = 2.0**20
+_FINITE_RAD = 2.0**18  # beams' |angle| below it (rad): alpha + pi far below 2**20 turns
 
 
-def _mod_two_pi(a: np.ndarray) -> np.ndarray:
+def _mod_two_pi(a: np.ndarray, finite: bool = False) -> np.ndarray:
     """np.mod(a, 2 pi), exactly, at a fraction of fmod's cost: fmod(a, m) is a - q m with
     q = trunc(a / m), always representable; a - q m_hi is exact (both multiples of the
     ulp of m's last bit, the difference below 8) and so is the one rounding of (a - q
     m_hi) - q m_lo; the quotient can only be one too far from 0 (the division rounded up
     to an integer), which leaves the remainder of the wrong sign, and one exact step
-    corrects it. Then numpy's rule: a negative remainder gets m added."""
+    corrects it. Then numpy's rule: a negative remainder gets m added. ``finite``: every
+    value is finite and below 2**20 turns (the caller knows), so none is numpy's own."""
     q = np.trunc(a / TWO_PI)
     r = a - q * _TWO_PI_HI
     r -= q * _TWO_PI_LO
@@ -196,23 +198,26 @@ def _mod_two_pi(a: np.ndarray) -> np.ndarray:
     if len(off):
         r[off] -= np.copysign(TWO_PI, r[off])
     np.add(r, TWO_PI, out=r, where=r < 0.0)
+    if finite:
+        return r
     huge = (~(np.abs(q) <= _Q_MAX)).nonzero()[0]  # and NaN: numpy's own
     if len(huge):
         r[huge] = np.mod(a[huge], TWO_PI)
     return r
 
 
-def _wrap_abs(a: np.ndarray, near: bool = False) -> np.ndarray:
+def _wrap_abs(a: np.ndarray, near: bool = False, finite: bool = False) -> np.ndarray:
     """|wrap_angles(a)|, exactly: np.mod(a + pi, 2 pi) (numpy's fmod-based remainder)
     minus pi. ``near``: every a + pi lies in [-2 pi, 4 pi) (the beams' angles lie in
     (-2 pi, 2 pi)), where the remainder is one add or subtract; else
-    :func:`_mod_two_pi`. (Its -pi is pi's wrap; the absolute value makes them one.)"""
+    :func:`_mod_two_pi` (``finite``: its values finite, below 2**20 turns). (Its -pi is
+    pi's wrap; the absolute value makes them one.)"""
     a = a + math.pi
     if near:
         m = np.where(a < 0.0, a + TWO_PI, a)
         np.subtract(m, TWO_PI, out=m, where=a >= TWO_PI)
     else:
-        m = _mod_two_pi(a)
+        m = _mod_two_pi(a, finite)
     m -= math.pi
     return np.abs(m, out=m)
 
@@ -255,13 +260,16 @@ def cell_updates(
     # Eq. 6's angle: from the axis to the nearest point of the cell.
     alpha = np.arctan2(vy, vx, out=vy)
     alpha -= angle.repeat(per)
-    # The beams' angles within (-2 pi, 2 pi) put alpha + pi within [-2 pi, 4 pi).
-    alpha = _wrap_abs(alpha, bool(np.abs(angle).max() < TWO_PI - 1e-6))
+    # The beams' angles within (-2 pi, 2 pi) put alpha + pi within [-2 pi, 4 pi); far
+    # below 2**20 turns (and finite: the cells' arctan2 is) no value is np.mod's own.
+    most = float(np.abs(angle).max())
+    alpha = _wrap_abs(alpha, most < TWO_PI - 1e-6, most < _FINITE_RAD)
     cell_radius = 0.7072 * res
-    tmp = np.maximum(r, 1e-9, out=vx)
-    np.divide(cell_radius, tmp, out=tmp)
-    np.minimum(tmp, 1.0, out=tmp)
-    alpha -= np.arcsin(tmp, out=tmp)
+    # arcsin(min(cell_radius / max(r, 1e-9), 1)): the two clamps change only cells with
+    # r <= cell_radius (a quotient of at least 1), whose alpha is set to 0 below.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tmp = np.divide(cell_radius, r, out=vx)
+        alpha -= np.arcsin(tmp, out=tmp)
     np.maximum(alpha, 0.0, out=alpha)
     alpha[r <= cell_radius] = 0.0
     hb = h.repeat(per)

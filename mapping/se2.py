@@ -15,6 +15,11 @@ __all__ = ["compose", "relative", "wrap"]
 
 def compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Pose composition a (+) b on (..., 3) arrays."""
+    if a.ndim == 1 and b.ndim == 1:  # one pose: the same float64 operations, no stack
+        c, s = np.cos(a[2]), np.sin(a[2])
+        ax, ay, at = a.tolist()
+        bx, by, bt = b.tolist()
+        return np.array([ax + c * bx - s * by, ay + s * bx + c * by, at + bt])
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     return np.stack(
         [

@@ -250,7 +250,9 @@ def _run(former: bool, monkeypatch: pytest.MonkeyPatch) -> SampleAssociation:
     with monkeypatch.context() as m:
         if former:
             m.setattr(association_module, "DriftBank", FormerBank)
-            m.setattr(ir_cone, "_wrap_abs", lambda a, near=False: np.abs(wrap_angles(a)))
+            m.setattr(
+                ir_cone, "_wrap_abs", lambda a, near=False, finite=False: np.abs(wrap_angles(a))
+            )
         da = SampleAssociation(MOUNTS, cfg, GRID, seed=2)
         if former:
             da.model = IrInverseModel(da.model.config)  # no memo
