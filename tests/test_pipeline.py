@@ -242,3 +242,38 @@ def test_a_gps_fix_nearer_the_next_odometry_step_waits_for_it():
     held.feed("odometry", _odo(4, 0.2))
     held.feed("gps", fix(410_000_000, 0.2))
     assert held.localization._gps is None
+
+
+def test_the_mapping_worker_takes_its_inputs_in_batches_with_the_same_outputs():
+    """On a robot the mapping runs in a thread that wakes every batch_s for what came
+    (not once per input); its outputs are those of the inline pipeline, in order, each
+    with the tag of the input that caused it."""
+    import threading
+    import time
+
+    inputs, _ = drive(seconds=12.0)
+    cfg = load_config(None)
+    m = dataclasses.replace(cfg.services.mapping, samples=40)
+    cfg = dataclasses.replace(cfg, services=dataclasses.replace(cfg.services, mapping=m))
+    inline = Pipeline(cfg)
+    expected = []
+    for k, (topic, msg) in enumerate(inputs):
+        expected += [(t, o, k) for t, o in inline.feed(topic, msg) if t in ("map", "association")]
+    got, lock = [], threading.Lock()
+
+    def sink(t, o, tag):
+        with lock:
+            got.append((t, o, tag))
+
+    threaded = Pipeline(cfg, on_mapping=sink)
+    worker = threaded.worker
+    assert worker is not None
+    for k, (topic, msg) in enumerate(inputs):
+        threaded.feed(topic, msg, tag=k)
+        if k % 100 == 99:
+            time.sleep(0.01)  # the device loop's pace, about
+    threaded.close()
+    assert worker.done
+    assert got == expected
+    mapped = sum(t in ("ir", "heading") for t, _ in inputs)
+    assert 0 < worker.batches < mapped / 5  # woken for batches, not for each input
