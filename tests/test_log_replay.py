@@ -121,6 +121,27 @@ def test_replay_replaces_outputs_and_passes_the_rest(tmp_path: Path) -> None:
     assert acme == [b'{"k":7}']
 
 
+def test_replay_copies_what_it_only_passes_through_and_keeps_recorded_bytes(tmp_path: Path) -> None:
+    """A record of the robot's that nothing reads and that has no Foxglove view (raw
+    bytes) is copied without decoding; a record it decodes (a fed gyro sample, the truth)
+    is logged with the bytes it was recorded with. Same output as decoding and encoding
+    every record, which the writer's canonical encoding makes the same bytes."""
+    src, dst = tmp_path / "in.mcap", tmp_path / "out.mcap"
+    _write_input(src, raw=True)
+    rep = replay(src, dst, config=Gain(), pipeline_factory=DeadReckoning, progress=False)
+    assert rep.copied == 400 == rep.as_dict()["copied_undecoded"]  # the raw gyro records
+    assert rep.read["messages"] == rep.read["decoded"] + rep.copied + 1  # + acme, unknown
+
+    def records(path: Path, topic: str) -> list[tuple[int, bytes]]:
+        with open(path, "rb") as f:
+            it = make_reader(f).iter_messages(topics=[topic])
+            return [(m.log_time, m.data) for _, _, m in it]
+
+    for topic in ("/r1/raw/gyro", "/r1/gyro", "/r1/truth", "/r1/odometry"):
+        assert records(dst, topic) == records(src, topic), topic
+    assert len(records(dst, "/r1/fox/truth")) == 40  # views still made of decoded ones
+
+
 def test_replay_from_raw_decodes_the_bytes_again(tmp_path: Path) -> None:
     from hilnav.replay import replayer as replay_mod
 

@@ -150,6 +150,15 @@ class Encoder:
             return self._shared(memo, topic, name, msg)
         return [Record(topic, name, msgs.encode(msg), cls), *self.views_of(topic, msg)]
 
+    def recorded(self, topic: str, msg: Any, data: bytes) -> list[Record]:
+        """:meth:`encode` of a message decoded from ``data`` (its native record in a log
+        being replayed): ``data`` itself, then the views made of ``msg``."""
+        cls = type(msg)
+        native = Record(topic, _schema_name(cls), bytes(data), cls)
+        if self.memo is not None and self.views and cls in self.memo.classes:
+            return self._shared(self.memo, topic, native.schema_name, msg)
+        return [native, *self.views_of(topic, msg)]
+
     @property
     def splits(self) -> bool:
         """Whether :meth:`native` then :meth:`views_of` give what :meth:`encode` gives

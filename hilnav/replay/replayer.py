@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from hilnav.devices import make_codecs
+from hilnav.log.foxglove import may_have_views
 from hilnav.log.reader import (
     RawRecord,
     ReadStats,
@@ -67,6 +68,7 @@ class ReplayReport:
     fed: Counter = field(default_factory=Counter)
     outputs: Counter = field(default_factory=Counter)
     passed: int = 0
+    copied: int = 0  # of those passed through, copied as recorded without decoding
     dropped_outputs: int = 0
     decoded_from_raw: Counter = field(default_factory=Counter)
     pipeline_errors: int = 0
@@ -84,6 +86,7 @@ class ReplayReport:
             "fed": dict(sorted(self.fed.items())),
             "outputs": dict(sorted(self.outputs.items())),
             "passed_through": self.passed,
+            "copied_undecoded": self.copied,
             "dropped_old_outputs": self.dropped_outputs,
             "decoded_from_raw": dict(sorted(self.decoded_from_raw.items())),
             "pipeline_errors": self.pipeline_errors,
@@ -202,13 +205,19 @@ class _Router:
             return
         if mine and self.decoders is not None and kind in DEVICE_TOPICS.values():
             return  # rebuilt from the raw bytes (_from_raw)
+        if mine and kind not in SERVICE_INPUTS and self._as_recorded(r):
+            _copy_encoded(self.w, r)  # nothing reads it and it has no view: not decoded
+            self.stats.messages += 1
+            rep.passed += 1
+            rep.copied += 1
+            return
         lm = decode_record(r, self.stats, self.types)
         if lm is None:
             _copy_encoded(self.w, r)
             rep.passed += 1
             return
         msg = lm.msg
-        self.w.write(r.topic, msg, r.log_time_ns, r.publish_time_ns)
+        self.w.write_recorded(r.topic, msg, r.data, r.log_time_ns, r.publish_time_ns)
         if not mine:
             rep.passed += 1
             self._other_robot(r, who, kind, msg)
@@ -219,6 +228,15 @@ class _Router:
             self._feed(who, kind, msg, r.log_time_ns, f"{r.topic} @ {r.log_time_ns}")
         else:
             rep.passed += 1
+
+    def _as_recorded(self, r: RawRecord) -> bool:
+        """A record of this robot the replay only copies (a raw record, diagnostics, a
+        status, ...): a known JSON message without Foxglove views, unless its raw bytes
+        are decoded again."""
+        cls = self.types.get(r.schema_name)
+        if cls is None or r.message_encoding != "json" or may_have_views(cls):
+            return False
+        return self.decoders is None or cls is not RawBytes
 
     def _other_robot(self, r: RawRecord, who: str, kind: str, msg: Any) -> None:
         """Another robot's message goes to the pipeline's ``feed_other`` when it has one."""
