@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import fields as dataclass_fields
+from math import radians
 from operator import attrgetter
 
 from drivers.nmea.fixstate import (
@@ -192,13 +193,54 @@ class EpochCombiner:
         self._last_fix = None
 
     def _report(self, out: list) -> None:
-        fix = self._fix(self._snap or self.session.fix)
+        """The epoch's fix (unless it is the one reported last) and its sky if changed."""
+        st = self.session
+        f = self._snap or st.fix
         self._snap = None
+        mode = f.mode
+        t = f.time_ns
+        gst = st.gst
+        if gst is None or t is None or st.gst_tod != t % DAY_NS:
+            gst = _NO_GST
+        quality = st.quality
+        if quality is None:
+            quality = 1 if mode >= MODE_2D else 0
+        sky = st.sky
+        sats = st.gga_sats
+        if sats is None:
+            sats = sky.used_count or None
+        ept = f.ept if t is not None else None
+        # what a fix shows: the position and its kin with a 2D fix, the rest in 3D only
+        if mode >= MODE_2D:
+            lat, lon = f.lat, f.lon
+            east = north = None
+            if lat is not None and lon is not None:
+                datum = self.datum
+                if datum is None:
+                    datum = self.datum = Datum(lat, lon)
+                if type(datum) is Datum:  # (Datum.to_local written out: the same operations)
+                    dlon = (lon - datum.lon_deg + 180.0) % 360.0 - 180.0
+                    east = radians(dlon) * datum._n * datum._cos  # type: ignore[attr-defined]
+                    north = radians(lat - datum.lat_deg) * datum._m  # type: ignore[attr-defined]
+                else:
+                    east, north = datum.to_local(lat, lon)
+            speed = f.speed
+            if speed is DEFERRED:
+                speed = f.speed_now()
+            fix = (_fix_3d if mode >= MODE_3D else _fix_2d)(
+                f, self._stamp_ns, iso_time(t), quality, sats, sky.dop, gst, east, north,
+                self._talker, speed, ept, st.leap_seconds,
+            )  # fmt: skip
+        else:
+            fix = _fix_none(
+                f, self._stamp_ns, iso_time(t), quality, sats, sky.dop, gst, None, None,
+                self._talker, None, ept, st.leap_seconds,
+            )  # fmt: skip
         last = self._last_fix
         if last is None or _but_stamp(last) != _but_stamp(fix):  # (replace(...) != fix)
             out.append(fix)
             self._last_fix = fix
-        if self.session.sky.changed:
+        if sky.changed:
             out.append(self._sky())
         self._reported = True
         self._pending = False
@@ -213,41 +255,6 @@ class EpochCombiner:
             self._stamp_ns, iso_time(st.fix.time_ns), sats, len(sats) if sky.complete else None,
             sky.used_count, get("hdop"), get("vdop"), get("pdop"), get("xdop"), get("ydop"),
             get("tdop"), get("gdop"), self._talker,
-        )  # fmt: skip
-
-    def _fix(self, f: Fix) -> GpsFix:
-        st = self.session
-        mode = f.mode
-        t = f.time_ns
-        gst = st.gst
-        if gst is None or t is None or st.gst_tod != t % DAY_NS:
-            gst = _NO_GST
-        quality = st.quality
-        if quality is None:
-            quality = 1 if mode >= MODE_2D else 0
-        sats = st.gga_sats
-        if sats is None:
-            sats = st.sky.used_count or None
-        ept = f.ept if t is not None else None
-        # what a fix shows: the position and its kin with a 2D fix, the rest in 3D only
-        if mode >= MODE_2D:
-            lat, lon = f.lat, f.lon
-            east = north = None
-            if lat is not None and lon is not None:
-                datum = self.datum
-                if datum is None:
-                    datum = self.datum = Datum(lat, lon)
-                east, north = datum.to_local(lat, lon)
-            speed = f.speed
-            if speed is DEFERRED:
-                speed = f.speed_now()
-            return (_fix_3d if mode >= MODE_3D else _fix_2d)(
-                f, self._stamp_ns, iso_time(t), quality, sats, st.sky.dop, gst, east, north,
-                self._talker, speed, ept, st.leap_seconds,
-            )  # fmt: skip
-        return _fix_none(
-            f, self._stamp_ns, iso_time(t), quality, sats, st.sky.dop, gst, None, None,
-            self._talker, None, ept, st.leap_seconds,
         )  # fmt: skip
 
 

@@ -64,7 +64,14 @@ def read_number(s: str) -> float | None:
     ``NUMBERS.get(s) or read_number(s)``): fnum(s), kept in the table."""
     if len(NUMBERS) >= _NUMBERS_MAX:
         NUMBERS.clear()
-    v = NUMBERS[s] = fnum(s)
+    try:  # (fnum of the usual field, written out)
+        v = float(s)
+    except ValueError:
+        v = NUMBERS[s] = fnum(s)
+        return v
+    if "_" in s or s[0] not in _START or v - v != 0.0:
+        v = fnum(s)
+    NUMBERS[s] = v
     return v
 
 
@@ -259,7 +266,21 @@ def latlon(lat: str, ns: str, lon: str, ew: str) -> tuple[float, float] | None:
         return v  # type: ignore[return-value]
     v = None
     if lat and ns and lon and ew:
-        a, b = _degrees(lat), _degrees(lon)
+        a = b = None
+        dot = lat.find(".")  # (_degrees of the usual fields, written out)
+        if dot > 0 and (minutes := _MINUTES.get(lat[:dot])) is not None:
+            frac = lat[dot + 1 :]
+            if frac.isdigit() and frac.isascii() and len(frac) < 100:
+                a = (minutes + int(frac) / _POW10[len(frac)]) * (1.0 / 60.0)
+        if a is None:
+            a = _degrees_read(lat)
+        dot = lon.find(".")
+        if dot > 0 and (minutes := _MINUTES.get(lon[:dot])) is not None:
+            frac = lon[dot + 1 :]
+            if frac.isdigit() and frac.isascii() and len(frac) < 100:
+                b = (minutes + int(frac) / _POW10[len(frac)]) * (1.0 / 60.0)
+        if b is None:
+            b = _degrees_read(lon)
         if a is not None and b is not None:
             v = (-a if ns[0] == "S" else a, -b if ew[0] == "W" else b)
     if len(_LATLON) >= _CACHE_MAX:
