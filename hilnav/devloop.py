@@ -57,6 +57,7 @@ from collections.abc import Callable
 from typing import Any
 
 PendingItems = list[tuple[str, Any]]
+POLL_ROUNDS = 8  # reads of a polled device in one turn at most (8 x 4 KiB: ~1 MB/s at 30 Hz)
 
 
 class WakePipe:
@@ -212,10 +213,7 @@ class DeviceLoop:
         timeout = min(max(0.0, due - now) + self.slack_s, self.beat_s)
         events = self._poller.poll(timeout)
         if self._polled_fds:  # the polled devices first: the gyro up to a SIP before it
-            for fd, _ in self._poll_later.poll(0):
-                entry = by_fd.get(fd)
-                if entry is not None and entry[0] in looped:
-                    self._read(entry[0], entry[1])
+            self._read_polled()
         for fd, _ in events:
             if fd == self.wake.rfd:  # a prompt queue entry (a device thread's read)
                 self.wake.clear()
@@ -238,6 +236,20 @@ class DeviceLoop:
             self._next_tick = now + self.tick_s
             self.flush()
             self.on_tick(now)
+
+    def _read_polled(self) -> None:
+        """Read the polled devices that have bytes, again while they still have (a port
+        that delivers more than a read takes between two turns, as a busy CAN bus can),
+        at most ``POLL_ROUNDS`` times in a turn."""
+        by_fd, looped = self._by_fd, self._looped
+        for _ in range(POLL_ROUNDS):
+            ready = self._poll_later.poll(0)
+            if not ready:
+                return
+            for fd, _ in ready:
+                entry = by_fd.get(fd)
+                if entry is not None and entry[0] in looped:
+                    self._read(entry[0], entry[1])
 
     def _absorb(self) -> None:
         """Handle what the queue holds (it came before what the loop reads next)."""

@@ -166,3 +166,86 @@ def test_a_turn_that_raises_is_counted_and_the_loop_goes_on(rig):
         drv.fileno = real_fileno
         d.loop.on_tick = real_tick
     assert d._loop_thread is not None and d._loop_thread.is_alive()
+
+
+class _Recorder:
+    """The consumer side of the loop (what RobotRuntime gives it), recording the reads."""
+
+    def __init__(self) -> None:
+        self.items: list = []
+        self.faults: list = []
+
+    def queued(self) -> bool:
+        return False
+
+    def take_queued(self) -> list:
+        return []
+
+    def handle_read(self, items, recv_ns, later=None, prompt=frozenset()) -> None:
+        self.items.extend(items)
+
+    def emit_later(self, later) -> None:
+        pass
+
+    def fault(self, where, exc) -> None:
+        self.faults.append((where, exc))
+
+
+class _PipeDevice:
+    """A device on a real pipe: reads what is there, 4 KiB at most, as the drivers do."""
+
+    def __init__(self) -> None:
+        import os
+
+        self.rfd, self.wfd = os.pipe()
+        os.set_blocking(self.rfd, False)
+
+    def fileno(self) -> int:
+        return self.rfd
+
+    def read(self, timeout_s: float) -> list:
+        import os
+
+        try:
+            return [("raw/gyro", os.read(self.rfd, 4096))]
+        except BlockingIOError:
+            return []
+
+
+def test_a_polled_device_that_delivers_more_than_a_read_is_read_again_in_the_turn():
+    """A polled port with more bytes than one read takes (a busy CAN bus, a burst after a
+    stall) is read again in the same turn, up to POLL_ROUNDS reads: nothing waits in the
+    kernel's buffer for many turns, and a flooding port cannot hold the loop."""
+    import os
+
+    from hilnav.devloop import POLL_ROUNDS, DeviceLoop
+
+    rec, dev, stop = _Recorder(), _PipeDevice(), threading.Event()
+    loop = DeviceLoop(
+        rec,
+        read_device=lambda name, drv, t: drv.read(t),
+        prompt_topics=frozenset(),
+        start_thread=lambda name, drv: None,
+        heartbeat=lambda: None,
+        on_tick=lambda now: None,
+        stop=stop,
+        polled=frozenset({"gyro"}),
+    )
+    try:
+        loop.adopt("gyro", dev)
+        loop._turn()  # takes the device over
+        assert loop.looped == ["gyro"] and loop._polled_fds == {dev.rfd}
+        rec.items.clear()
+        os.write(dev.wfd, b"\xff" * (4096 * (POLL_ROUNDS + 2)))
+        loop._turn()
+        got = sum(len(data) for _, data in rec.items)
+        assert got == 4096 * POLL_ROUNDS  # read again and again, but bounded
+        loop._turn()
+        assert sum(len(data) for _, data in rec.items) == 4096 * (POLL_ROUNDS + 2)
+        assert not rec.faults
+    finally:
+        loop._poll_later.close()
+        loop._poller.close()
+        loop.wake.close()
+        os.close(dev.rfd)
+        os.close(dev.wfd)
