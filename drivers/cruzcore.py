@@ -163,13 +163,22 @@ class CommandParser:
 
 
 class CruzCoreCodec:
-    """Bytes -> :class:`msgs.GyroSample` with resync and angle unwrapping."""
+    """Bytes -> :class:`msgs.GyroSample` with resync and angle unwrapping.
 
-    def __init__(self) -> None:
+    The packet carries no time, so a sample is stamped with the time of the read that
+    brought it. With ``rate_hz`` (the rate the gyro was set to), several packets of one
+    read (a USB adapter's burst, a reader that reads at its own pace) are stamped back
+    from it one period apart: the last with the read's time, each earlier one a period
+    before the next, as the gyro sent them; never at or before the previous read's last
+    sample (then spread evenly between the two). Without it, all share the read's time."""
+
+    def __init__(self, rate_hz: float | None = None) -> None:
         self.stats = CodecStats()
         self._buf = bytearray()
         self._last_wrapped: float | None = None
         self._turns = 0
+        self.period_ns = int(1e9 / rate_hz) if rate_hz else 0
+        self._last_stamp: int | None = None
 
     def reset_unwrap(self) -> None:
         """Forget the unwrapping state (after a ``$MIB,RESET``)."""
@@ -208,6 +217,10 @@ class CruzCoreCodec:
             i += PACKET_LEN
             self.stats.frames_ok += 1
             out.append(self._sample(rate_raw, angle_raw, stamp_ns))
+        if len(out) > 1 and self.period_ns:
+            out = self._stamped_back(out, stamp_ns)
+        if out:
+            self._last_stamp = out[-1].stamp_ns
         if i:
             del buf[:i]
         if len(buf) < PACKET_LEN and buf and buf[0] != 0xFF:
@@ -216,6 +229,21 @@ class CruzCoreCodec:
             self.stats.bytes_skipped += j
             del buf[:j]
         return out
+
+    def _stamped_back(self, out: list[GyroSample], stamp_ns: int) -> list[GyroSample]:
+        """The samples of one read stamped back from it (class docstring)."""
+        n, period, last = len(out), self.period_ns, self._last_stamp
+        first = stamp_ns - (n - 1) * period
+        if last is None or first > last:
+            stamps = [first + k * period for k in range(n)]
+        elif stamp_ns > last:
+            stamps = [last + (k + 1) * (stamp_ns - last) // n for k in range(n)]
+        else:  # the clock went back: the read's time, as without a rate
+            return out
+        return [
+            GyroSample(t, g.rate_radps, g.angle_rad, g.angle_wrapped_rad)
+            for t, g in zip(stamps, out, strict=True)
+        ]
 
     def _sample(self, rate_raw: int, angle_raw: int, stamp_ns: int) -> GyroSample:
         wrapped = angle_raw * ANGLE_LSB_DEG * DEG

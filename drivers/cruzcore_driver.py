@@ -22,7 +22,7 @@ class CruzCoreDriver(StreamDriver):
         on_raw: RawHook | None = None,
         **kw: float,
     ) -> None:
-        super().__init__(url, CruzCoreCodec(), baud, clock, on_raw, **kw)
+        super().__init__(url, CruzCoreCodec(rate_hz), baud, clock, on_raw, **kw)
         self.rate_hz = rate_hz
         self.reset_on_open = reset_on_open
 
@@ -42,4 +42,5 @@ class CruzCoreDriver(StreamDriver):
 
     def set_rate(self, rate_hz: int) -> bool:
         self.rate_hz = rate_hz
+        self.codec.period_ns = int(1e9 / rate_hz) if rate_hz else 0
         return self.write(config_command(rate_hz=rate_hz))

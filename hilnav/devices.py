@@ -148,7 +148,7 @@ def _gyro_driver(cfg: RobotConfig, on_raw: RawHook, **extra: Any) -> Any:
 def _gyro_codec(cfg: RobotConfig) -> Any:
     from drivers.cruzcore import CruzCoreCodec
 
-    return CruzCoreCodec()
+    return CruzCoreCodec(cfg.devices.gyro.rate_hz)  # stamps as the driver's
 
 
 def _gyro_emulator(cfg: RobotConfig, knobs: FakeKnobs) -> Any:

@@ -109,3 +109,29 @@ def test_a_command_that_lost_its_lf_does_not_swallow_the_next():
     cut = cfg[:10]  # cut short: it is lost, the next one is kept
     assert [c.kind for c in p.feed(cut + reset_command())] == ["reset"]
     assert p.stats.bad_checksums == 1
+
+
+def test_a_read_of_several_packets_is_stamped_back_one_period_apart():
+    """With the gyro's rate, the packets of one read get the times the gyro sent them at
+    (the last the read's), never at or before the previous read's last; without it, the
+    read's time for all (the packet has no time of its own)."""
+    pkts = [encode_packet(0.1, 0.01 * i) for i in range(8)]
+    ms = 1_000_000
+    c = CruzCoreCodec(rate_hz=100)
+    assert [g.stamp_ns for g in c.feed(b"".join(pkts[:5]), 1000 * ms)] == [
+        960 * ms, 970 * ms, 980 * ms, 990 * ms, 1000 * ms
+    ]  # fmt: skip
+    # two packets read only 5 ms later (a stall's end): spread after the last one
+    assert [g.stamp_ns for g in c.feed(b"".join(pkts[5:7]), 1005 * ms)] == [1002_500_000, 1005 * ms]
+    # a lone packet: the read's time; a clock set back: the read's time for all
+    assert [g.stamp_ns for g in c.feed(pkts[7], 1010 * ms)] == [1010 * ms]
+    assert {g.stamp_ns for g in c.feed(b"".join(pkts[:3]), 900 * ms)} == {900 * ms}
+    # the angles and rates are those of the plain decode, in order
+    plain = CruzCoreCodec().feed(b"".join(pkts), 7)
+    again = CruzCoreCodec(rate_hz=100).feed(b"".join(pkts), 7 * 10**9)
+    assert [(g.rate_radps, g.angle_rad) for g in plain] == [
+        (g.rate_radps, g.angle_rad) for g in again
+    ]
+    assert {g.stamp_ns for g in plain} == {7}
+    stamps = [g.stamp_ns for g in again]
+    assert stamps == sorted(stamps) and stamps[-1] == 7 * 10**9 and len(set(stamps)) == 8
