@@ -162,9 +162,14 @@ def test_replay_from_raw_decodes_the_bytes_again(tmp_path: Path) -> None:
         datum: tuple[float, float] = (37.5, 127.0)
 
     @dataclass
+    class _Gyro:
+        rate_hz: int = 100
+
+    @dataclass
     class _Devices:
         ir: _Ir = field(default_factory=_Ir)
         gps: _Gps = field(default_factory=_Gps)
+        gyro: _Gyro = field(default_factory=_Gyro)
 
     @dataclass
     class _Geometry:
