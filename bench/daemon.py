@@ -6,9 +6,12 @@ service on: heading filter, pose EKF, CP localization, IR mapping with sample-ba
 association), drives the demo's office tour over cmd_vel from a second Zenoh session for
 ``--seconds`` (default 60), then stops the daemon with SIGTERM and reads its MCAP log.
 
-Prints, the LAST line a JSON object:
+Prints a table, then, the LAST line, a JSON object:
 - ``cpu_percent_daemon``: CPU time of the daemon process over the run, in percent of one
-  core (``cpu_percent_fakes``: the emulated devices' process, for reference);
+  core (``cpu_percent_fakes``: the emulated devices' process, for reference), and
+  ``cpu_percent_threads``, the same by thread: the device loop (``services``), the IR
+  mapping (``mapping``), the motion watchdog, the log's flush timer, Zenoh's runtime
+  (``zenoh``) and the rest (``other``: Python's main thread, zenoh-python's callbacks);
 - ``peak_rss_mb_daemon``: the daemon's peak resident memory (VmHWM), MiB;
 - ``pose_latency_ms_p50`` / ``_p99``: from the time the Pioneer's bytes were read (the
   odometry stamp, which the pose inherits) to the pose arriving in the second session;
@@ -231,6 +234,29 @@ class WakeFloor:
             return float("nan")
 
 
+# the daemon's own threads, named for the OS (hilnav.osthread); Zenoh's are "net-0",
+# "rx-1", "tx-0", "acc-0", "app-0" ...; the rest (Python's main thread, zenoh-python's
+# callback threads) stay "python3"
+OWN_THREADS = ("services", "mapping", "watchdog", "mcap-flush")
+ZENOH_PREFIXES = ("net-", "rx-", "tx-", "acc-", "app-", "timer", "zenoh")
+
+
+def thread_cpu(pid: int) -> dict[str, float]:
+    """CPU seconds so far of ``pid``'s threads, summed by kind: each of OWN_THREADS,
+    "zenoh" (Zenoh's runtime threads) and "other"."""
+    out = dict.fromkeys((*OWN_THREADS, "zenoh", "other"), 0.0)
+    tick = os.sysconf("SC_CLK_TCK")
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            name = (task / "comm").read_text().strip()
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:  # a thread that ended
+            continue
+        kind = name if name in out else "zenoh" if name.startswith(ZENOH_PREFIXES) else "other"
+        out[kind] += (int(fields[11]) + int(fields[12])) / tick
+    return out
+
+
 def voluntary_switches(pid: int) -> int:
     """The voluntary context switches of every thread of ``pid`` so far."""
     total = 0
@@ -300,9 +326,11 @@ def wait_for_robot(op: Operator, proc: subprocess.Popen, timeout_s: float = 60.0
 
 def drive_tour(
     op: Operator, proc: subprocess.Popen, latencies: PoseLatencies, seconds: float
-) -> tuple[float, float, float]:
-    """Drive the tour for ``seconds``: CPU seconds of the daemon and of the fakes, elapsed s."""
+) -> tuple[float, float, float, dict[str, float]]:
+    """Drive the tour for ``seconds``: CPU seconds of the daemon and of the fakes, elapsed
+    s, and the daemon's CPU by thread (percent of one core, :func:`thread_cpu`'s kinds)."""
     fake_pids = children(proc.pid)
+    threads0 = thread_cpu(proc.pid)
     cpu0 = cpu_seconds(proc.pid)
     fcpu0 = sum(cpu_seconds(p) for p in fake_pids)
     latencies.clear()
@@ -312,9 +340,11 @@ def drive_tour(
     while time.monotonic() < deadline:
         op.drive(TOUR, 0.5, deadline)
     cpu1 = cpu_seconds(proc.pid)
+    threads1 = thread_cpu(proc.pid)
     fcpu1 = sum(cpu_seconds(p) for p in fake_pids)
     elapsed = time.monotonic() - t0
-    return cpu1 - cpu0, fcpu1 - fcpu0, elapsed
+    threads = {k: round(100.0 * (threads1[k] - threads0[k]) / elapsed, 2) for k in threads1}
+    return cpu1 - cpu0, fcpu1 - fcpu0, elapsed, threads
 
 
 def stop_daemon(op: Operator, proc: subprocess.Popen) -> tuple[str, str]:
@@ -370,7 +400,7 @@ def main(argv: list[str] | None = None) -> int:
     wake = WakeFloor(args.seconds)
     switches0 = voluntary_switches(proc.pid)
     try:
-        cpu, fcpu, elapsed = drive_tour(op, proc, latencies, args.seconds)
+        cpu, fcpu, elapsed, threads = drive_tour(op, proc, latencies, args.seconds)
         switches = voluntary_switches(proc.pid) - switches0
     finally:
         floor.close()
@@ -387,6 +417,7 @@ def main(argv: list[str] | None = None) -> int:
         "exit_code": proc.returncode,
         "cpu_percent_daemon": round(100.0 * cpu / elapsed, 1),
         "cpu_percent_fakes": round(100.0 * fcpu / elapsed, 1),
+        "cpu_percent_threads": threads,
         "peak_rss_mb_daemon": round(rss, 1),
         "pose_latency_ms_p50": round(float(np.percentile(lat, 50)), 2),
         "pose_latency_ms_p99": round(float(np.percentile(lat, 99)), 2),
@@ -408,12 +439,33 @@ def main(argv: list[str] | None = None) -> int:
     }
     if stderr.strip():
         print(stderr.strip()[-1000:], file=sys.stderr)
+    print_table(result)
     if tmp is not None:
         tmp.cleanup()
     # An undefined figure (no samples) is null, not JSON's missing NaN.
     print(json.dumps({k: None if isinstance(v, float) and math.isnan(v) else v
                       for k, v in result.items()}))  # fmt: skip
     return 0 if proc.returncode == 0 else 1
+
+
+def print_table(r: dict) -> None:
+    """The run's figures as a table (the JSON line follows)."""
+    rows = [
+        ("daemon CPU, % of one core", r["cpu_percent_daemon"]),
+        *((f"  thread {k}", v) for k, v in r["cpu_percent_threads"].items()),
+        ("wake-ups per s (daemon) / wake floor %", f"{r['daemon_wakeups_per_s']} / {r['wake_floor_percent']}"),
+        ("fakes CPU %", r["cpu_percent_fakes"]),
+        ("peak RSS MiB", r["peak_rss_mb_daemon"]),
+        ("pose latency p50 / p99 ms", f"{r['pose_latency_ms_p50']} / {r['pose_latency_ms_p99']}"),
+        ("  transport floor p50 / p99 ms", f"{r['transport_ms_p50']} / {r['transport_ms_p99']}"),
+        ("MCAP messages per s", r["mcap_messages_per_s"]),
+        ("dropped", r["dropped"]),
+        ("load (1 min)", r["load_average_1min"]),
+    ]  # fmt: skip
+    width = max(len(k) for k, _ in rows)
+    print(f"{'figure':<{width}}  value")
+    for k, v in rows:
+        print(f"{k:<{width}}  {v}")
 
 
 if __name__ == "__main__":

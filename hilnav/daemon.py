@@ -33,6 +33,7 @@ from hilnav.devices import DEVICES, make_drivers, with_fake_ports
 from hilnav.devloop import DeviceLoop
 from hilnav.fakeset import FakeProcess, FakeProcessError
 from hilnav.motion import MotionGuard
+from hilnav.osthread import NamedThread
 from hilnav.peers import PeerTable
 from hilnav.pipeline import Pipeline
 from hilnav.runtime import RobotRuntime, RuntimeStats, StartError
@@ -153,7 +154,7 @@ class Daemon:
             raise
 
     def _thread(self, target: Any, name: str, *args: Any) -> threading.Thread:
-        t = threading.Thread(target=target, args=args, name=name, daemon=True)
+        t = NamedThread(target=target, args=args, name=name, daemon=True)
         t.start()
         self._threads.append(t)
         return t

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from typing import Any
 
 from hilnav.cmdvel import CmdVelGate, CmdVelLimits
+from hilnav.osthread import NamedThread
 from msgs import VelocityCommand
 
 
@@ -42,7 +43,7 @@ class MotionGuard:
         self._thread: threading.Thread | None = None
 
     def start(self) -> None:
-        self._thread = threading.Thread(target=self._watch, name="watchdog", daemon=True)
+        self._thread = NamedThread(target=self._watch, name="watchdog", daemon=True)
         self._thread.start()
 
     @property

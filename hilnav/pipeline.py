@@ -30,6 +30,7 @@ from collections.abc import Callable
 from typing import Any
 
 from hilnav.config import RobotConfig
+from hilnav.osthread import NamedThread
 from hilnav.services import HeadingAdapter, LocalizationAdapter, MappingAdapter, PoseAdapter
 from hilnav.topics import SERVICE_INPUTS
 
@@ -68,7 +69,7 @@ class MappingWorker:
         self._queue_size = queue_size
         self._batch_max = batch_max
         self._wake = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name="mapping", daemon=True)
+        self._thread = NamedThread(target=self._loop, name="mapping", daemon=True)
         self._thread.start()
 
     def put(self, topic: str, msg: Any, tag: Any) -> None:

@@ -77,3 +77,34 @@ def test_the_transport_floor_bench_measures_every_case(capsys) -> None:
         assert 4 <= result[f"{case}_n"] <= 5  # (a put lost on loopback: rare, allowed)
         p50, p99 = result[f"{case}_ms_p50"], result[f"{case}_ms_p99"]
         assert 0.0 < p50 <= p99 < 1000.0
+
+
+def test_the_daemons_threads_are_named_for_the_os_and_their_cpu_told_apart() -> None:
+    """hilnav.osthread.NamedThread gives its name to its OS thread, which is how the
+    bench tells the device loop's CPU from the mapping's (``cpu_percent_threads``)."""
+    from hilnav.osthread import NamedThread
+
+    bench = _bench()
+    stop = threading.Event()
+
+    def spin() -> None:
+        end = time.process_time() + 0.3
+        while time.process_time() < end and not stop.is_set():
+            sum(range(1000))
+        stop.wait(5.0)
+
+    before = bench.thread_cpu(os.getpid())
+    t = NamedThread(target=spin, name="mapping", daemon=True)
+    t.start()
+    try:
+        time.sleep(0.1)
+        comm = Path(f"/proc/{os.getpid()}/task/{t.native_id}/comm").read_text().strip()
+        assert comm == "mapping"
+        deadline = time.monotonic() + 5.0
+        while bench.thread_cpu(os.getpid())["mapping"] - before["mapping"] < 0.2:
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+    finally:
+        stop.set()
+        t.join(5.0)
+    assert set(before) == {"services", "mapping", "watchdog", "mcap-flush", "zenoh", "other"}

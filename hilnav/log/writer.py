@@ -36,6 +36,7 @@ from typing import Any
 
 from hilnav.log.encoding import Encoder, Record, dumps
 from hilnav.log.mcap_file import COMPRESSIONS, McapFile
+from hilnav.osthread import NamedThread
 
 METADATA_NAME = "hilnav"
 PROFILE = ""
@@ -105,7 +106,7 @@ class LogWriter:
         self._stop = threading.Event()
         self._timer: threading.Thread | None = None
         if wall_clock:
-            self._timer = threading.Thread(target=self._tick, name="mcap-flush", daemon=True)
+            self._timer = NamedThread(target=self._tick, name="mcap-flush", daemon=True)
             self._timer.start()
 
     @property
