@@ -47,7 +47,11 @@ poses for every branch: until the first scan after it comes of age the branches 
 one map (copied when they part). The K insertions of a scan share the lattice of its
 cones (``IrInverseModel.integrate_each``), and none goes through the memo of the
 association's maps (other poses: never asked for again). Bit for bit what K maps of
-their own, each inserting alone, give.
+their own, each inserting alone, give. The maps are filled as the scans age, not when a
+score reads them: every scan that came of age between two scores has cells on the next
+score's rays, so deferring scans would skip only a run's tail (``bench/branch_reads.py``,
+docs/benchmarks.md); most cells are never read, but only a per-cell lazy map could skip
+them.
 """
 
 from __future__ import annotations
