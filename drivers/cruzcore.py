@@ -236,9 +236,9 @@ class CruzCoreCodec:
         first = stamp_ns - (n - 1) * period
         if last is None or first > last:
             stamps = [first + k * period for k in range(n)]
-        elif stamp_ns > last:
+        elif stamp_ns - last >= n:
             stamps = [last + (k + 1) * (stamp_ns - last) // n for k in range(n)]
-        else:  # the clock went back: the read's time, as without a rate
+        else:  # no room after the last (the clock went back): the read's time, as without
             return out
         return [
             GyroSample(t, g.rate_radps, g.angle_rad, g.angle_wrapped_rad)

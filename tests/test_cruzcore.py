@@ -135,3 +135,30 @@ def test_a_read_of_several_packets_is_stamped_back_one_period_apart():
     assert {g.stamp_ns for g in plain} == {7}
     stamps = [g.stamp_ns for g in again]
     assert stamps == sorted(stamps) and stamps[-1] == 7 * 10**9 and len(set(stamps)) == 8
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 40), st.integers(0, 30_000_000)), min_size=1, max_size=30),
+    st.sampled_from([None, 50, 100, 1000]),
+)
+def test_stamps_of_any_reads_increase_and_never_pass_the_read(reads, rate):
+    """Whatever the reads bring (0-40 bytes, cut anywhere) and whenever they come (the
+    clock only forward), every sample's stamp is at most its read's, and with a rate
+    they strictly increase from read to read unless the reads come closer than a
+    nanosecond per packet."""
+    stream = b"".join(encode_packet(0.01 * k, 0.001 * k) for k in range(200))
+    c = CruzCoreCodec(rate)
+    pos, t, prev = 0, 10**9, None
+    for size, gap in reads:
+        t += gap
+        out = c.feed(stream[pos : pos + size], t)
+        pos += size
+        for g in out:
+            assert g.stamp_ns <= t
+        stamps = [g.stamp_ns for g in out]
+        if rate and out and (prev is None or t - prev >= len(out)):
+            assert stamps == sorted(set(stamps))  # strictly increasing within the read
+            assert prev is None or stamps[0] > prev
+        if out:
+            prev = stamps[-1]
