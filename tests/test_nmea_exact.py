@@ -17,11 +17,9 @@ import re
 
 from drivers.nmea import NmeaCodec, build, clear_caches, fastpath
 from drivers.nmea.dops import geometry_dops
-from drivers.nmea.errmodel import _nearer_than, earth_distance, error_model, fresh_model
+from drivers.nmea.errmodel import _nearer_than, earth_distance
 from drivers.nmea.fields import _degrees, clock, fnum, latlon, read_number
-from drivers.nmea.fixstate import FIELDS, Fix, gga_fix
 from drivers.nmea.framer import NmeaFramer, _classify, _key
-from drivers.nmea.session import Session
 from tests.test_nmea_fastpath import sky_stream
 
 _INT = re.compile(r"\s*([-+]?\d+)")
@@ -97,51 +95,6 @@ def test_the_readers_tables_read_as_the_plain_functions():
             assert repr(latlon(s, "S", other, "E")) == repr(want), (s, other)
         if k % 500 == 0:
             clear_caches()
-
-
-def _fix_pair(rng: random.Random) -> tuple:
-    """A session whose fix a GGA has just started, its last and previous fixes and DOPs of
-    every kind (none, some, all; DGPS or not; times equal, apart, missing)."""
-    st = Session()
-    pick = rng.choice
-    for name in ("lastfix", "oldfix"):
-        f = Fix()
-        f.time_ns = pick([None, 0, 10**18, 10**18 - 10**9, 10**18 + 5 * 10**6])
-        f.lat, f.lon = pick([(None, None), (45.0, 7.0), (45.00001, 7.00002), (91.0, 7.0)])
-        f.mode = pick([0, 1, 2, 3])
-        f.alt_hae = pick([None, 100.0, 130.5])
-        f.epx, f.epy, f.epv = pick([None, 3.0]), pick([None, 4.5]), pick([None, 7.0])
-        setattr(st, name, f)
-    if rng.random() < 0.3:
-        st.oldfix = st.lastfix
-    dops = {"xdop": 0.7, "ydop": 0.8, "vdop": 1.3, "hdop": 1.0, "pdop": 1.6, "gdop": 2.0}
-    st.sky.dop = {k: v for k, v in dops.items() if rng.random() < 0.6}
-    st.fix = gga_fix(
-        pick([None, 0, 10**18, 10**18 + 10**9, 10**18 + 3 * 10**6]),
-        *pick([(45.00002, 7.00001), (45.1, 7.2), (-95.0, 7.0)]),
-        pick([None, 120.0]), pick([None, 47.0]), pick([0, 1, 2, 3]), pick([1, 2]),
-        None, None,
-    )  # fmt: skip
-    st._unnormed = rng.random() < 0.2
-    return st
-
-
-def _state(st: Session) -> str:
-    fixes = (st.fix, st.lastfix, st.oldfix)
-    return repr(([[getattr(f, n) for n in FIELDS] for f in fixes], st._dops, st._unnormed,
-                 [f is st.fix for f in fixes]))  # fmt: skip
-
-
-def test_fresh_model_is_the_error_model_on_a_new_gga_fix():
-    rng = random.Random(4)
-    for _ in range(3000):
-        state = rng.getstate()
-        a = _fix_pair(rng)
-        rng.setstate(state)
-        b = _fix_pair(rng)
-        error_model(a, {})
-        fresh_model(b)
-        assert _state(a) == _state(b)
 
 
 def _dops_plain(az_el: tuple[tuple[float, float], ...]) -> tuple[tuple[str, float], ...]:

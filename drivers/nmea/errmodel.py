@@ -15,7 +15,7 @@ estimates a fix already holds are kept for the rest of its epoch (``eph``, ``epv
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from drivers.nmea.fixstate import DEFERRED, MODE_2D, MODE_3D, STATUS_DGPS
 
@@ -169,11 +169,9 @@ def motion_model(st: Session) -> None:
     _tracks(st, fix)
 
 
-def error_model(st: Session, new: dict) -> None:
-    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave). The
-    session keeps the DOPs this run saw (``st._dops``) and whether it left a track outside
-    0-360 degrees (``st._unnormed``: gpsd moves such a track by 360 each run), so that a
-    sentence changing neither the fix nor the DOPs need not run it again."""
+def _start(st: Session) -> tuple[Any, Any, int | None, Any, float]:
+    """What both error models start with: the DOPs (kept as this run's), the fix, its
+    time, the previous fix and the time since it (-1 without a time)."""
     dop = st.sky.dop
     st._dops = dop.copy()
     fix = st.fix
@@ -188,6 +186,15 @@ def error_model(st: Session, new: dict) -> None:
             dt = (t - (old.time_ns or 0)) * 1e-9
     else:
         dt = -1.0
+    return dop, fix, t, old, dt
+
+
+def error_model(st: Session, new: dict) -> None:
+    """Update ``st.fix`` after a merge (``new``: what the sentence itself gave). The
+    session keeps the DOPs this run saw (``st._dops``) and whether it left a track outside
+    0-360 degrees (``st._unnormed``: gpsd moves such a track by 360 each run), so that a
+    sentence changing neither the fix nor the DOPs need not run it again."""
+    dop, fix, t, old, dt = _start(st)
     lat, lon = fix.lat, fix.lon
     if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
         fix.lat = fix.lon = lat = lon = None
@@ -272,81 +279,3 @@ def error_model(st: Session, new: dict) -> None:
             fix.epc = (old.epv + epv) / dt
     if t:
         st.lastfix = fix  # the fix itself: a later sentence without a time copies it first
-
-
-def fresh_model(st: Session) -> None:
-    """:func:`error_model` (with no estimates given) on a fix a GGA has just started
-    (``fixstate.gga_fix``): it has no speed, climb, velocities, tracks, variation or
-    estimates yet, so the checks of those fall away and every estimate the DOPs give is
-    set; the same operations otherwise, in the same order."""
-    dop = st.sky.dop
-    st._dops = dop.copy()
-    fix = st.fix
-    t = fix.time_ns
-    old = st.oldfix
-    if t:
-        last = st.lastfix
-        dt = (t - (last.time_ns or 0)) * 1e-9
-        if dt > 0.0099 or dt < -0.0099:
-            st.oldfix = old = last
-        else:
-            dt = (t - (old.time_ns or 0)) * 1e-9
-    else:
-        dt = -1.0
-    lat, lon = fix.lat, fix.lon
-    if lat is None or lon is None or not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-        fix.lat = fix.lon = lat = lon = None
-    st._unnormed = False
-    sep = fix.geoid_sep
-    if sep is not None:
-        alt = fix.alt_msl
-        if alt is not None:
-            fix.alt_hae = alt + sep
-    mode = fix.mode
-    moved = dt > 0 and mode >= MODE_2D and old.mode >= MODE_2D
-    if moved:
-        fix.speed = DEFERRED
-        fix.speed_args = (lat, lon, old.lat, old.lon, dt)
-        if (
-            mode >= MODE_3D
-            and old.mode >= MODE_3D
-            and fix.alt_hae is not None
-            and old.alt_hae is not None
-        ):
-            climb = (fix.alt_hae - old.alt_hae) / dt
-            fix.climb = None if abs(climb) > _MAX_RATE else climb
-    if t:
-        fix.ept = 0.005
-    if mode < MODE_2D:
-        if t:
-            st.lastfix = fix
-        return
-    if dop:
-        h_uere, v_uere, p_uere = UERE_DGPS if fix.status == STATUS_DGPS else UERE
-        get = dop.get
-        if (xdop := get("xdop")) is not None:
-            fix.epx = xdop * h_uere
-        if (ydop := get("ydop")) is not None:
-            fix.epy = ydop * h_uere
-        if mode >= MODE_3D and (vdop := get("vdop")) is not None:
-            fix.epv = vdop * v_uere
-        if (hdop := get("hdop")) is not None:
-            fix.eph = hdop * p_uere
-        if (pdop := get("pdop")) is not None:
-            fix.sep = pdop * p_uere
-    if moved:
-        epx, epy = fix.epx, fix.epy
-        opp = epx if epx is not None and epy is not None and epx > epy else epy
-        a, b = old.epx, old.epy
-        if a is not None and b is not None:
-            a = a if a > b else b
-            fix.eps = None if opp is None else (a + opp) / dt
-        if opp is not None and not _nearer_than(old.lat, old.lon, lat, lon, opp):
-            adj = st.distance(old.lat, old.lon, lat, lon)
-            if adj is not None and adj > opp:
-                fix.epd = math.degrees(2 * math.asin(opp / math.hypot(adj, opp)))
-        epv = fix.epv
-        if epv is not None and old.epv is not None:
-            fix.epc = (old.epv + epv) / dt
-    if t:
-        st.lastfix = fix

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from drivers.nmea.errmodel import error_model, fresh_model, motion_model
+from drivers.nmea.errmodel import error_model, motion_model
 from drivers.nmea.fastpath import (
     _DATES,
     _NONE,
@@ -125,7 +125,7 @@ def gga(rest: str, stamp: int, out: list, comb: EpochCombiner, talker: str) -> N
         if sky.used_count != sats:
             sky.used_count = sats
             sky.changed = True
-        fresh_model(st)
+        error_model(st, _NONE)
     else:
         comb._pending = True
         comb._snap = None

@@ -32,8 +32,8 @@ from types import FunctionType
 from typing import TYPE_CHECKING
 
 from drivers.nmea.errmodel import error_model, motion_model
-from drivers.nmea.fields import _HHMM, _SS, _TAIL, _tail, clock, ddmmyy, read_number
 from drivers.nmea.fields import NUMBERS as nums
+from drivers.nmea.fields import clock, ddmmyy, read_number
 from drivers.nmea.fixstate import MODE_3D, MODE_NO_FIX, MODE_SET
 from drivers.nmea.handlers import KNOTS_TO_MPS
 from drivers.nmea.memo import table
@@ -62,18 +62,6 @@ def _time(s: str) -> tuple[int | None, float | None]:
     (readers look in ``_TIMES`` first: ``_TIMES.get(s) or _time(s)``)."""
     if len(_TIMES) >= _CACHE_MAX:
         _TIMES.clear()
-    hhmm = _HHMM.get(s[:4])  # (fields.clock of an ordinary field, written out)
-    if hhmm is not None:
-        sec = _SS.get(s[4:6])
-        if sec is not None:
-            tail = s[6:]
-            ns, scale, digits = _TAIL.get(tail) or _tail(tail)
-            if scale:
-                t = _TIMES[s] = (
-                    hhmm[0] + sec[0] + ns,
-                    ((hhmm[1] + sec[1]) * scale + digits) / scale,
-                )
-                return t
     t = _TIMES[s] = clock(s)
     return t
 

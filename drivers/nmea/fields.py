@@ -266,27 +266,26 @@ def latlon(lat: str, ns: str, lon: str, ew: str) -> tuple[float, float] | None:
         return v  # type: ignore[return-value]
     v = None
     if lat and ns and lon and ew:
-        a = b = None
-        dot = lat.find(".")  # (_degrees of the usual fields, written out)
-        if dot > 0 and (minutes := _MINUTES.get(lat[:dot])) is not None:
-            frac = lat[dot + 1 :]
-            if frac.isdigit() and frac.isascii() and len(frac) < 100:
-                a = (minutes + int(frac) / _POW10[len(frac)]) * (1.0 / 60.0)
-        if a is None:
-            a = _degrees_read(lat)
-        dot = lon.find(".")
-        if dot > 0 and (minutes := _MINUTES.get(lon[:dot])) is not None:
-            frac = lon[dot + 1 :]
-            if frac.isdigit() and frac.isascii() and len(frac) < 100:
-                b = (minutes + int(frac) / _POW10[len(frac)]) * (1.0 / 60.0)
-        if b is None:
-            b = _degrees_read(lon)
+        a = _usual_degrees(lat)
+        b = _usual_degrees(lon)
         if a is not None and b is not None:
             v = (-a if ns[0] == "S" else a, -b if ew[0] == "W" else b)
     if len(_LATLON) >= _CACHE_MAX:
         _LATLON.clear()
     _LATLON[key] = v
     return v
+
+
+def _usual_degrees(text: str) -> float | None:
+    """:func:`_degrees` of a position field: the usual ``dddmm.mmmm`` read by table
+    (degrees and minutes, then the fraction as an exact integer over a power of ten),
+    anything else through ``_degrees_read``."""
+    dot = text.find(".")
+    if dot > 0 and (minutes := _MINUTES.get(text[:dot])) is not None:
+        frac = text[dot + 1 :]
+        if frac.isdigit() and frac.isascii() and len(frac) < 100:
+            return (minutes + int(frac) / _POW10[len(frac)]) * (1.0 / 60.0)
+    return _degrees_read(text)
 
 
 def faa_status(mode: str) -> int:
