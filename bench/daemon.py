@@ -58,6 +58,7 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from bench.baseline import run_baseline
 from hilnav.bus import free_tcp_port
 from hilnav.commands.demo import TOUR, Operator
 
@@ -381,6 +382,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=60.0, help="length of the run")
     ap.add_argument("--out", type=Path, default=None, help="keep the log in this directory")
     ap.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        help="another hilnav checkout: its own bench/daemon.py runs at the same time, with "
+        "the same options, and its figures are printed beside these (bench/baseline.py)",
+    )
+    ap.add_argument(
         "--without",
         action="append",
         default=[],
@@ -388,6 +396,7 @@ def main(argv: list[str] | None = None) -> int:
         help="switch this service off (repeatable)",
     )
     args = ap.parse_args(argv)
+    before = Baseline(args) if args.baseline is not None else None
     out, tmp = output_dir(args.out)
     port = free_tcp_port()
     proc, log = start_daemon(out, port, tuple(args.without))
@@ -439,6 +448,8 @@ def main(argv: list[str] | None = None) -> int:
     }
     if stderr.strip():
         print(stderr.strip()[-1000:], file=sys.stderr)
+    if before is not None:
+        result["baseline"] = before.result()
     print_table(result)
     if tmp is not None:
         tmp.cleanup()
@@ -448,8 +459,55 @@ def main(argv: list[str] | None = None) -> int:
     return 0 if proc.returncode == 0 else 1
 
 
+class Baseline:
+    """The old checkout's own bench/daemon.py, run in a thread at the same time as this
+    one (both daemons share the machine's load), with the same options."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        opts = ["--seconds", str(args.seconds)]
+        for name in args.without:
+            opts += ["--without", name]
+        self._out: dict = {}
+        self._thread = threading.Thread(
+            target=self._run, args=(args.baseline, opts), name="baseline", daemon=True
+        )
+        self._thread.start()
+
+    def _run(self, checkout: Path, opts: list[str]) -> None:
+        try:
+            self._out = run_baseline(checkout, "bench/daemon.py", *opts)
+        except SystemExit as exc:  # (run_baseline's way of saying it failed)
+            self._out = {"error": str(exc)[-500:]}
+
+    def result(self) -> dict:
+        self._thread.join()
+        return self._out
+
+
 def print_table(r: dict) -> None:
-    """The run's figures as a table (the JSON line follows)."""
+    """The run's figures as a table (the JSON line follows); with a baseline, its
+    figures in a first column."""
+    b = r.get("baseline")
+    if b is not None and "error" in b:
+        print(f"baseline: {b['error']}", file=sys.stderr)
+        b = None
+    if b is not None:
+        b = {**b, "cpu_percent_threads": b.get("cpu_percent_threads") or {}}
+    rows = _rows(r)
+    width = max(len(k) for k, _ in rows)
+    if b is None:
+        print(f"{'figure':<{width}}  value")
+        for k, v in rows:
+            print(f"{k:<{width}}  {v}")
+        return
+    old = dict(_rows(b))
+    print(f"{'figure':<{width}}  {'baseline':>16}  {'this checkout':>16}")
+    for k, v in rows:
+        print(f"{k:<{width}}  {old.get(k, '-')!s:>16}  {v!s:>16}")
+
+
+def _rows(r: dict) -> list[tuple[str, object]]:
+    """(figure, value) of one run's result, in the table's order."""
     rows = [
         ("daemon CPU, % of one core", r["cpu_percent_daemon"]),
         *((f"  thread {k}", v) for k, v in r["cpu_percent_threads"].items()),
@@ -462,10 +520,7 @@ def print_table(r: dict) -> None:
         ("dropped", r["dropped"]),
         ("load (1 min)", r["load_average_1min"]),
     ]  # fmt: skip
-    width = max(len(k) for k, _ in rows)
-    print(f"{'figure':<{width}}  value")
-    for k, v in rows:
-        print(f"{k:<{width}}  {v}")
+    return rows
 
 
 if __name__ == "__main__":

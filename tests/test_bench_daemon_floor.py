@@ -108,3 +108,36 @@ def test_the_daemons_threads_are_named_for_the_os_and_their_cpu_told_apart() -> 
         stop.set()
         t.join(5.0)
     assert set(before) == {"services", "mapping", "watchdog", "mcap-flush", "zenoh", "other"}
+
+
+def test_the_table_puts_a_baselines_figures_beside_this_checkouts(capsys) -> None:
+    """``--baseline``: the old checkout's figures (an old bench has no per-thread split)
+    in a column beside this run's; a baseline that failed is said, not tabled."""
+    bench = _bench()
+    run = {
+        "cpu_percent_daemon": 5.8,
+        "cpu_percent_threads": {"services": 2.4, "mapping": 2.5},
+        "daemon_wakeups_per_s": 170.0,
+        "wake_floor_percent": 0.4,
+        "cpu_percent_fakes": 4.8,
+        "peak_rss_mb_daemon": 99.0,
+        "pose_latency_ms_p50": 1.1,
+        "pose_latency_ms_p99": 3.3,
+        "transport_ms_p50": 0.3,
+        "transport_ms_p99": 2.5,
+        "mcap_messages_per_s": 283.0,
+        "dropped": 0,
+        "load_average_1min": 0.9,
+    }
+    old = {**run, "cpu_percent_daemon": 7.1, "daemon_wakeups_per_s": 319.0}
+    del old["cpu_percent_threads"]
+    bench.print_table({**run, "baseline": old})
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split()[-3:] == ["baseline", "this", "checkout"]
+    cpu = next(x for x in lines if x.startswith("daemon CPU"))
+    assert cpu.split()[-2:] == ["7.1", "5.8"]
+    mapping = next(x for x in lines if "thread mapping" in x)
+    assert mapping.split()[-2:] == ["-", "2.5"]
+    bench.print_table({**run, "baseline": {"error": "baseline bench/daemon.py failed (1)"}})
+    out = capsys.readouterr()
+    assert "failed" in out.err and out.out.splitlines()[0].split() == ["figure", "value"]
