@@ -24,9 +24,10 @@ without waiting, at every turn, and what it holds is read before the turn's othe
 (so the gyro's packets up to a SIP come before the SIP). The loop turns at least every
 ``tick_s`` (plus ``slack_s``) anyway, for its timers, so a polled device is read in
 batches of that age at most: the 100 Hz gyro's packets come five at a time, and the
-loop wakes about 30 times a second (SIPs, ticks) instead of about 150. A read of several
-packets stamps them as one burst, which the fusion front end takes as it takes a USB
-adapter's bursts (fusion.arrival rule 1; the gyro's angles telescope).
+loop wakes about 30 times a second (SIPs, ticks) instead of about 150. The gyro's codec
+stamps the packets of one read back one period apart, as the gyro sent them
+(drivers.cruzcore); a port with more than a read's worth is read again in the turn, at
+most ``POLL_ROUNDS`` times.
 
 A device without a descriptor to wait on (a pyserial URL such as ``socket://``, a file of
 recorded bytes, a python-can interface other than slcan) and a device whose link is down
