@@ -155,7 +155,13 @@ def test_diagnostics_per_device_at_about_one_hz(running):
 
 
 def test_sigterm_exits_0_with_a_closed_log_of_every_topic(running):
-    proc, _, seen, log, _ = running
+    proc, op, seen, log, _ = running
+    # what the log must hold, whether or not the tests before this one ran: the robot up
+    # for a few seconds (status, map, GPS) and a command from the operator
+    assert _wait(lambda: ("r1", True) in seen.alive and len(seen.get("status")) >= 3, 30.0)
+    assert _wait(lambda: len(seen.get("map")) >= 1, 10.0)
+    op.publish_to("r1", "cmd_vel", VelocityCommand(time.time_ns(), 0.0, 0.0, source="operator"))
+    time.sleep(0.3)
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
