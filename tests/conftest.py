@@ -46,6 +46,14 @@ def shared_dir() -> Path:
     return SHARED
 
 
+def require(path: Path) -> Path:
+    """``path`` (a part of the shared folder's data); the test, or every test of the
+    fixture, that asks for it is skipped, with the path, when it is absent."""
+    if not path.exists():
+        pytest.skip(f"shared data not found at {path}")
+    return path
+
+
 def pump(driver, seconds: float, v: float | None = None, w: float = 0.0):
     """Read a driver for ``seconds`` (driving at v, w if given); the last odometry seen."""
     from msgs import RobotOdometry

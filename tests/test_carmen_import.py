@@ -17,7 +17,7 @@ from fakes.world.laser_ir import LaserIrBoard, ir_ranges_from_laser
 from hilnav.log.reader import read_messages, read_metadata
 from mapping.carmen import load_carmen, load_laser_log
 from mapping.laser_log import densify, laser_angles, repair_times
-from tests.conftest import HILNAV, ROOT, SHARED, hilnav_env
+from tests.conftest import HILNAV, ROOT, SHARED, hilnav_env, require
 
 INTEL = SHARED / "data" / "intel"
 MAT = INTEL / "sot_scan_intel.mat"
@@ -113,6 +113,7 @@ def test_ir_from_laser_wall_edges_and_unknown() -> None:
 
 @pytest.fixture(scope="module")
 def imported(tmp_path_factory) -> Path:
+    require(MAT), require(GFS)
     out = tmp_path_factory.mktemp("carmen") / "intel.mcap"
     proc = subprocess.run(
         [*HILNAV, "import", "carmen", str(MAT), str(out), "--reference", str(GFS),

@@ -11,6 +11,7 @@ from conftest import HILNAV, SHARED, hilnav_env
 
 from hilnav.log.reader import read_messages, read_metadata
 from msgs import PoseBox, RelativeScan
+from tests.conftest import require
 
 
 def _fleet(tmp_path, *extra: str) -> tuple[dict, str]:
@@ -74,6 +75,7 @@ def test_recorded_mrclam_robots_exchange_boxes_over_zenoh_and_hold_the_truth(tmp
     """Three recorded robots of MRCLAM Dataset 6 (real data), 10 s at 5x: each replays
     its own odometry and camera through its CP and EKF in a host process, the boxes and
     sightings go over Zenoh (a router on loopback), the boxes hold the motion capture."""
+    require(MRCLAM)
     cmd = [*HILNAV, "fleet", "--scenario", "mrclam", "--data", str(MRCLAM), "--robots", "3",
            "--duration", "10", "--rate", "5", "--out", "logs"]  # fmt: skip
     proc = subprocess.run(

@@ -16,7 +16,7 @@ from mapping.grid import GridConfig, OccupancyGrid
 from mapping.ir_inverse import IrInverseModel, beams_from_scan
 from mapping.map_scores import ReferenceMap, score
 from msgs import Pose2D
-from tests.conftest import SHARED
+from tests.conftest import SHARED, require
 
 INTEL = SHARED / "data" / "intel"
 DEG = math.pi / 180.0
@@ -26,7 +26,9 @@ MOUNTS = np.array([[0.2, 0.05, 15 * DEG], [0.2, -0.05, -15 * DEG], [0.17, 0.13, 
 
 @cache
 def _run():
-    log = load_laser_log(INTEL / "sot_scan_intel.mat", INTEL / "intel.gfs.log").head(700)
+    log = load_laser_log(
+        require(INTEL / "sot_scan_intel.mat"), require(INTEL / "intel.gfs.log")
+    ).head(700)
     run = emulate(log, MOUNTS)
     return run, reference_map(run, 0.05, (-1.0, -1.0))
 

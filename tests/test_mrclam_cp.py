@@ -7,20 +7,19 @@ it. Cooperation must not make the boxes larger (but for 1 %).
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from localization.mrclam import load_mrclam
 from localization.mrclam_cp import containment, run_cp
+from tests.conftest import SHARED, require
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATA = SHARED / "data/mrclam/MRCLAM_Dataset6"
 
 
 @pytest.fixture(scope="module")
 def slice60():
-    run = load_mrclam(DATA, robots=[3, 5])
+    run = load_mrclam(require(DATA), robots=[3, 5])
     t0 = run.start_s + 100.0
     return run, {
         coop: run_cp(run, None, coop, start_s=t0, end_s=t0 + 60.0) for coop in (False, True)

@@ -25,10 +25,10 @@ from msgs import (
     decode,
     encode,
 )
-from tests.conftest import HILNAV, ROOT, hilnav_env
+from tests.conftest import HILNAV, ROOT, SHARED, hilnav_env, require
 
 S = 1_000_000_000
-DATA = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATA = SHARED / "data/mrclam/MRCLAM_Dataset6"
 MARKS = {6: (3.0, 3.0), 7: (-3.0, 3.0), 8: (-3.0, -3.0), 9: (3.0, -3.0)}
 TRUE = {"r1": (0.0, 0.0, 0.3), "r2": (2.0, 0.5, 2.0)}  # at rest
 
@@ -201,6 +201,7 @@ def test_import_replay_analyze_of_real_robots_holds_the_truth_as_the_batch_does(
     """40 s of robots 2, 3 and 5 (who see one another), from 60 s: the replay's CP
     services exchange boxes and sightings through the log's topics; analyze finds every
     box around the motion capture, with the median areas of the batch runner."""
+    require(DATA)
     from localization.mrclam import load_mrclam
     from localization.mrclam_cp import containment, run_cp
 

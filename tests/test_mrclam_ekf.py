@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -35,8 +34,9 @@ from localization.mrclam_filter import JointEkf, frame_factor
 from localization.mrclam_motion import NX, biased_motion, velocity_motion
 from numerics.motion import motion
 from numerics.rangebearing import range_bearing
+from tests.conftest import SHARED, require
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATA = SHARED / "data/mrclam/MRCLAM_Dataset6"
 
 
 def _poses(rng, n):
@@ -334,7 +334,7 @@ def _cut(run: MrclamRun, a: float, b: float) -> MrclamRun:
 
 @pytest.fixture(scope="module")
 def dataset6():
-    return load_mrclam(DATA)
+    return load_mrclam(require(DATA))
 
 
 @pytest.mark.parametrize("cooperation", ["joint", "split_ci"])

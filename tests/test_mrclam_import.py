@@ -17,9 +17,9 @@ from hilnav.importers.mrclam import import_mrclam
 from hilnav.log.foxglove_schemas import official_schema
 from hilnav.log.reader import ReadStats, read_messages, read_metadata
 from msgs import GroundTruth, LandmarkMap, RangeBearing, VelocityOdometry
-from tests.conftest import HILNAV, ROOT, hilnav_env
+from tests.conftest import HILNAV, ROOT, SHARED, hilnav_env, require
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATA = SHARED / "data/mrclam/MRCLAM_Dataset6"
 # 30 s of robots 1 and 4 that hold a gap of the motion capture for both (at 540.4 s)
 START_S, SECONDS, ROBOTS = 530.0, 30.0, (1, 4)
 
@@ -35,6 +35,7 @@ def _cli(*args: str, timeout: int = 240) -> dict:
 
 @pytest.fixture(scope="module")
 def sliced(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    require(DATA)
     out = tmp_path_factory.mktemp("mrclam") / "slice.mcap"
     robots = ",".join(str(n) for n in ROBOTS)
     report = _cli("import", "mrclam", str(DATA), str(out), "--start", str(START_S),
@@ -229,6 +230,7 @@ def test_the_ekf_replay_of_robots_that_meet_is_the_batch_ekf_and_analyze_scores_
     """40 s of robots 2, 3 and 5, which see one another: the replayed EKF services
     exchange estimates and position fixes and give the batch's split-CI tracks; analyze
     scores their pose (RMSE, 3-sigma containment) against the truth."""
+    require(DATA)
     from hilnav.analysis.analyze import analyze
     from hilnav.replay.replayer import replay
 

@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from localization.mrclam import MrclamError, load_mrclam
+from tests.conftest import SHARED, require
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared/data/mrclam/MRCLAM_Dataset6"
+DATA = SHARED / "data/mrclam/MRCLAM_Dataset6"
 
 
 def test_dataset6_loads_with_subjects_and_truth():
-    run = load_mrclam(DATA)
+    run = load_mrclam(require(DATA))
     assert sorted(run.robots) == [1, 2, 3, 4, 5]
     assert sorted(run.landmarks) == list(range(6, 21))
     assert 880 < run.end_s - run.start_s < 900
