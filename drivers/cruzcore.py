@@ -177,8 +177,13 @@ class CruzCoreCodec:
         self._buf = bytearray()
         self._last_wrapped: float | None = None
         self._turns = 0
-        self.period_ns = int(1e9 / rate_hz) if rate_hz else 0
+        self.period_ns = 0
         self._last_stamp: int | None = None
+        self.set_rate(rate_hz)
+
+    def set_rate(self, rate_hz: float | None) -> None:
+        """The rate the gyro sends at (None: unknown, a read's packets share its time)."""
+        self.period_ns = int(1e9 / rate_hz) if rate_hz else 0
 
     def reset_unwrap(self) -> None:
         """Forget the unwrapping state (after a ``$MIB,RESET``)."""

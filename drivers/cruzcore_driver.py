@@ -42,5 +42,5 @@ class CruzCoreDriver(StreamDriver):
 
     def set_rate(self, rate_hz: int) -> bool:
         self.rate_hz = rate_hz
-        self.codec.period_ns = int(1e9 / rate_hz) if rate_hz else 0
+        self.codec.set_rate(rate_hz)
         return self.write(config_command(rate_hz=rate_hz))

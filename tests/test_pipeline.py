@@ -277,3 +277,31 @@ def test_the_mapping_worker_takes_its_inputs_in_batches_with_the_same_outputs():
     assert got == expected
     mapped = sum(t in ("ir", "heading") for t, _ in inputs)
     assert 0 < worker.batches < mapped / 5  # woken for batches, not for each input
+
+
+def test_a_mapping_input_that_raises_is_counted_and_the_worker_goes_on():
+    """No single input stops the mapping thread: one that raises in the mapping service
+    is handed to on_fault, and the inputs after it are mapped as without it."""
+    import threading
+
+    inputs, _ = drive(seconds=6.0)
+    cfg = load_config(None)
+    faults, got, lock = [], [], threading.Lock()
+
+    def sink(t, o, tag):
+        with lock:
+            got.append((t, o, tag))
+
+    p = Pipeline(cfg, on_mapping=sink, on_fault=lambda where, exc: faults.append(where))
+    inline = Pipeline(cfg)
+    expected = []
+    for k, (topic, msg) in enumerate(inputs):
+        if k == 400:  # a scan whose stamp is not a number (a broken caller)
+            n = len(cfg.geometry.ir_mounts_rad())
+            bad = IrScan("late", 1, 0, (1.0,) * n, ("ok",) * n, (0.0,) * n)
+            p.worker.put("ir", bad, -1)
+        p.feed(topic, msg, tag=k)
+        expected += [(t, o, k) for t, o in inline.feed(topic, msg) if t in ("map", "association")]
+    p.close()
+    assert p.worker.done and faults == ["mapping"]
+    assert got == expected and got

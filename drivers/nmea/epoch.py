@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import fields as dataclass_fields
-from math import radians
 from operator import attrgetter
 
 from drivers.nmea.fixstate import (
@@ -218,12 +217,7 @@ class EpochCombiner:
                 datum = self.datum
                 if datum is None:
                     datum = self.datum = Datum(lat, lon)
-                if type(datum) is Datum:  # (Datum.to_local written out: the same operations)
-                    dlon = (lon - datum.lon_deg + 180.0) % 360.0 - 180.0
-                    east = radians(dlon) * datum._n * datum._cos  # type: ignore[attr-defined]
-                    north = radians(lat - datum.lat_deg) * datum._m  # type: ignore[attr-defined]
-                else:
-                    east, north = datum.to_local(lat, lon)
+                east, north = datum.to_local(lat, lon)
             speed = f.speed
             if speed is DEFERRED:
                 speed = f.speed_now()

@@ -154,10 +154,10 @@ class Encoder:
         """:meth:`encode` of a message decoded from ``data`` (its native record in a log
         being replayed): ``data`` itself, then the views made of ``msg``."""
         cls = type(msg)
-        native = Record(topic, _schema_name(cls), bytes(data), cls)
+        name = _schema_name(cls)
         if self.memo is not None and self.views and cls in self.memo.classes:
-            return self._shared(self.memo, topic, native.schema_name, msg)
-        return [native, *self.views_of(topic, msg)]
+            return self._shared(self.memo, topic, name, msg)
+        return [Record(topic, name, bytes(data), cls), *self.views_of(topic, msg)]
 
     @property
     def splits(self) -> bool:
