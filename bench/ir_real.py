@@ -19,12 +19,19 @@ association (eq. 7-8). Runs:
 Each map is scored against the laser map at the reference poses on the cells the IR
 sensors observe from those poses (mapping.map_scores: occupied precision / recall within
 2 cells, alignment; the paper's match ratio for comparison). Pose error: the mean
-distance of the mapped poses (the scans the motion filter took) from the reference;
-heading NEES against the reference, at every scan.
+distance of the mapped poses (the scans the motion filter took) from the reference,
+both starting at its first pose; shape error (``fit_m``): the same after the rigid fit
+of the track onto the reference (a turn of the whole track, from a heading error
+before the first loop, does not count); relative error (``rel_m``): the mean error of
+the track's motions over 10 m of travel, in the frame of their start (Kuemmerle et al.,
+2009: what the track gets wrong locally); heading NEES against the reference, at every
+scan.
 The table goes to stdout; the LAST line is a JSON object with precision_noda,
 recall_noda, precision_da_median, recall_da_median, pose_err_noda_m,
 pose_err_da_median_m (medians over the seeds, gyro runs), da_worse_runs (seeds where
-DA's pose error exceeds no-DA's by more than 1 mm), peak_rss_mb, max_step_s (slowest DA
+DA's pose error exceeds no-DA's by more than 1 mm), shape_err_noda_m,
+shape_err_da_median_m, rel_err_noda_m, rel_err_da_median_m, shape_worse_runs (the same
+count for the shape error), peak_rss_mb, max_step_s (slowest DA
 step), max_finish_s (the slowest finish(): the association's pose graph solved and the
 map rebuilt once) and more. The DA runs are scored on what finish() returns and on the
 association's trajectory after it.
@@ -51,6 +58,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fusion.heading import HeadingFilter, HeadingParams
+from hilnav.analysis.geometry import error_after_rigid_fit, relative_error
 from hilnav.config import load_config
 from hilnav.heap import keep_heap_slack
 from hilnav.importers.carmen import EmulatedRun, emulate, reference_map, stream
@@ -66,6 +74,7 @@ from msgs import HeadingEstimate, Pose2D
 from numerics.angles import wrap
 
 DEG = math.pi / 180.0
+REL_M = 10.0  # the relative error's distance
 CHI2_1_99 = 6.634896601021214
 
 
@@ -75,6 +84,8 @@ class Result:
     score: MapScore
     pose_err_m: float
     final_pose_err_m: float
+    shape_err_m: float = math.nan  # after the rigid fit to the reference
+    rel_err_m: float = math.nan  # over REL_M of travel
     nees: float = math.nan
     final_sigma_deg: float = math.nan
     final_heading_err_deg: float = math.nan
@@ -143,9 +154,13 @@ def true_heading_poses(run: EmulatedRun) -> list[Pose2D]:
     return [Pose2D(float(x), float(y), float(t)) for (x, y), t in zip(xy, ref[:, 2], strict=True)]
 
 
-def pose_errors(poses: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+def pose_errors(poses: np.ndarray, ref: np.ndarray) -> tuple[float, float, float, float]:
+    """(mean, final) distance from the reference (both start at its first pose), the
+    mean after the rigid fit of the track onto it, the mean error of its motions over
+    REL_M of travel (hilnav.analysis.geometry)."""
     e = np.hypot(poses[:, 0] - ref[:, 0], poses[:, 1] - ref[:, 1])
-    return float(np.mean(e)), float(e[-1])
+    return (float(np.mean(e)), float(e[-1]), error_after_rigid_fit(poses, ref),
+            relative_error(poses, ref, REL_M))  # fmt: skip
 
 
 def nees(est: list[HeadingEstimate], ref: np.ndarray) -> tuple[float, float, float]:
@@ -203,6 +218,7 @@ def row(r: Result) -> str:
     acc = f"{oc.get('accepted', 0)}/{sum(oc.values())}" if oc else "-"
     return (f"{r.name:18s} {s.occupied_precision:5.3f} {s.occupied_recall:5.3f} "
             f"{s.alignment:5.3f} {s.match_ratio:5.3f} {r.pose_err_m:7.3f} {r.final_pose_err_m:7.3f} "
+            f"{r.shape_err_m:7.3f} {r.rel_err_m:6.3f} "
             f"{r.nees:8.2f} {r.final_sigma_deg:7.1f} {r.final_heading_err_deg:7.1f} "
             f"{acc:>7s} {r.max_step_s:6.3f} {r.seconds:6.1f}")  # fmt: skip
 
@@ -242,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     # The cells scored: those the IR sensors observe from the reference poses, every scan.
     ref_map = laser.with_observed(plain_map(base, grid_cfg, ref_poses, zeros, every))
     ideal = plain_map(base, grid_cfg, ref_poses, zeros, mapped(base, ref_poses, motion))
-    results = [Result("reference poses", score(ideal, ref_map), 0.0, 0.0)]
+    results = [Result("reference poses", score(ideal, ref_map), 0.0, 0.0, 0.0, 0.0)]
     true_th = true_heading_poses(base)
     keep = mapped(base, true_th, motion)
     traj = np.array([[p.x, p.y, p.theta] for p in true_th])[keep]
@@ -251,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{src.name}: {len(log)} scans, {log.path_length_m():.0f} m driven, "
           f"{len(mounts)} IR mounts, reference: {log.reference_source}")  # fmt: skip
     print(f"{'run':18s} {'prec':>5s} {'rec':>5s} {'align':>5s} {'match':>5s} {'pose_m':>7s} "
-          f"{'final_m':>7s} {'NEES':>8s} {'sig_deg':>7s} {'err_deg':>7s} {'acc':>7s} "
+          f"{'final_m':>7s} {'fit_m':>7s} {'rel_m':>6s} {'NEES':>8s} {'sig_deg':>7s} {'err_deg':>7s} {'acc':>7s} "
           f"{'step_s':>6s} {'sec':>6s}")  # fmt: skip
     print(row(results[0]), flush=True)
     print(row(floor), flush=True)
@@ -299,6 +315,8 @@ def main(argv: list[str] | None = None) -> int:
         "precision_ref": round(results[0].score.occupied_precision, 4),
         "recall_ref": round(results[0].score.occupied_recall, 4),
         "pose_err_true_heading_m": round(floor.pose_err_m, 3),
+        "shape_err_true_heading_m": round(floor.shape_err_m, 3),
+        "rel_err_true_heading_m": round(floor.rel_err_m, 3),
         "precision_true_heading": round(floor.score.occupied_precision, 4),
         "recall_true_heading": round(floor.score.occupied_recall, 4),
         "precision_noda": round(med(r.score.occupied_precision for r in noda), 4),
@@ -312,6 +330,13 @@ def main(argv: list[str] | None = None) -> int:
         "pose_err_noda_m": round(med(r.pose_err_m for r in noda), 3),
         "pose_err_da_median_m": round(med(r.pose_err_m for r in da), 3),
         "pose_err_da_max_m": round(max((r.pose_err_m for r in da), default=math.nan), 3),
+        "shape_err_noda_m": round(med(r.shape_err_m for r in noda), 3),
+        "shape_err_da_median_m": round(med(r.shape_err_m for r in da), 3),
+        "rel_err_noda_m": round(med(r.rel_err_m for r in noda), 3),
+        "rel_err_da_median_m": round(med(r.rel_err_m for r in da), 3),
+        "shape_worse_runs": sum(
+            d.shape_err_m > n.shape_err_m + 1e-3 for n, d in zip(noda, da, strict=True)
+        ),  # fmt: skip
         "da_worse_runs": worse,
         "nees_gyro_median": round(med(r.nees for r in noda), 3),
         "accepted_median": med(r.outcomes.get("accepted", 0) for r in da),

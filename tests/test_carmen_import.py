@@ -183,10 +183,16 @@ def test_ir_real_bench_on_a_slice_with_other_mounts(shared_dir: Path) -> None:
     assert rep["mounts"] == 3 and rep["scans"] == 600 and rep["seeds"] == 1
     assert any(line.startswith("true heading") for line in lines)
     for key in ("pose_err_true_heading_m", "pose_err_noda_m", "pose_err_da_median_m",
-                "precision_true_heading", "precision_da_median", "recall_da_median"):  # fmt: skip
+                "precision_true_heading", "precision_da_median", "recall_da_median",
+                "shape_err_noda_m", "shape_err_da_median_m", "rel_err_noda_m",
+                "rel_err_da_median_m", "shape_err_true_heading_m"):  # fmt: skip
         assert rep[key] is not None and math.isfinite(rep[key]), key
     assert 0.0 < rep["pose_err_true_heading_m"] < 1.0  # 16 m of a real robot's odometry
     assert rep["precision_true_heading"] <= rep["precision_ref"]
+    # the fit can only lower the error; the relative error is that of 10 m stretches
+    assert 0.0 < rep["shape_err_true_heading_m"] <= rep["pose_err_true_heading_m"]
+    assert 0.0 < rep["rel_err_true_heading_m"] < 1.0
+    assert rep["shape_worse_runs"] in (0, 1)
 
 
 def test_true_heading_floor_is_exact_when_the_odometry_is(

@@ -6,11 +6,12 @@ import json
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hilnav.analysis.analyze import analyze
 from hilnav.analysis.containment import box_contains
-from hilnav.analysis.geometry import interp_pose
+from hilnav.analysis.geometry import error_after_rigid_fit, interp_pose, relative_error
 from hilnav.analysis.report import digest, summary_json
 from msgs import Interval, PoseBox, wrap_angle
 from tests.conftest import HILNAV, ROOT, hilnav_env
@@ -217,3 +218,27 @@ def test_times_are_the_stamps_not_the_late_log_times(tmp_path: Path) -> None:
             w.write("/r1/pose", PoseEstimate(t, Pose2D(x, y, th), (0.0,) * 9), late)
     err = analyze(path).robots["r1"].paths["pose"].position.error_m
     assert err.max < 1e-9
+
+
+def test_shape_and_relative_errors_ignore_the_frame_and_see_a_scale() -> None:
+    """``error_after_rigid_fit`` and ``relative_error`` (hilnav.analysis.geometry): a
+    track drawn in another frame (turned 40 deg, shifted) has neither; the same track 5 %
+    too large has a relative error of 5 % of the 10 m stretches."""
+
+    rng = np.random.default_rng(3)
+    th = np.cumsum(rng.normal(0.0, 0.05, 400))
+    steps = 0.1 * np.column_stack([np.cos(th), np.sin(th)])
+    xy = np.cumsum(steps, axis=0)
+    ref = np.column_stack([xy, th])
+    a = np.radians(40.0)
+    c, s = np.cos(a), np.sin(a)
+    moved = np.column_stack([c * xy[:, 0] - s * xy[:, 1] + 3.0, s * xy[:, 0] + c * xy[:, 1] - 2.0,
+                             th + a])  # fmt: skip
+    assert error_after_rigid_fit(moved, ref) < 1e-9
+    assert relative_error(moved, ref, 10.0) < 1e-9
+    assert np.mean(np.hypot(*(moved[:, :2] - ref[:, :2]).T)) > 1.0  # far apart as they are
+    large = np.column_stack([1.05 * xy, th])
+    rel = relative_error(large, ref, 10.0)
+    assert rel == pytest.approx(0.05 * 10.0, rel=0.05)  # stretches just over 10 m long
+    assert error_after_rigid_fit(large, ref) > 0.0
+    assert np.isnan(relative_error(large, ref, 1e6))

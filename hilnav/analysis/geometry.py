@@ -1,4 +1,5 @@
-"""Numerics of tracks: interpolation in time, distance travelled, start alignment, rigid fit.
+"""Numerics of tracks: interpolation in time, distance travelled, start alignment, rigid fit,
+relative error over a distance.
 
 Angles of arrays are wrapped by ``numerics.angles.wrap`` (to (-pi, pi], like
 ``msgs.wrap_angle`` for one angle).
@@ -63,3 +64,35 @@ def apply_fit(
     dx, dy, th = fit
     c, s = math.cos(th), math.sin(th)
     return c * x - s * y + dx, s * x + c * y + dy
+
+
+def error_after_rigid_fit(p: np.ndarray, q: np.ndarray) -> float:
+    """Mean distance of the positions ``p`` (N, 2+) from ``q`` after the rigid fit of p onto
+    q: the error of the track's shape, whatever the frame it was drawn in."""
+    fit = rigid_fit(p[:, :2], q[:, :2])
+    x, y = apply_fit(fit, p[:, 0], p[:, 1])
+    return float(np.mean(np.hypot(x - q[:, 0], y - q[:, 1])))
+
+
+def relative_error(p: np.ndarray, q: np.ndarray, dist_m: float) -> float:
+    """Mean error of the motions over ``dist_m`` of the reference's travel (the
+    translation part of the relative error of Kuemmerle et al., 2009, "On measuring the
+    accuracy of SLAM algorithms"): from each pose i to the first pose j at least
+    ``dist_m`` further along ``q``, the displacement in the frame of pose i, estimated
+    (``p``, (N, 3)) against reference (``q``). A frame error common to the whole track
+    (a turn or shift of the start) does not count; what the track gets wrong locally
+    does. NaN when the reference never travels ``dist_m``."""
+    d = path_length(q[:, 0], q[:, 1])
+    j = np.searchsorted(d, d + dist_m)
+    i = np.nonzero(j < len(d))[0]
+    if len(i) == 0:
+        return math.nan
+    j = j[i]
+
+    def local(t: np.ndarray) -> np.ndarray:
+        dx, dy = t[j, 0] - t[i, 0], t[j, 1] - t[i, 1]
+        c, s = np.cos(t[i, 2]), np.sin(t[i, 2])
+        return np.column_stack([c * dx + s * dy, -s * dx + c * dy])
+
+    e = local(p) - local(q)
+    return float(np.mean(np.hypot(e[:, 0], e[:, 1])))
