@@ -197,7 +197,8 @@ class SampleAssociation:
             self._bank = None  # a heading that is lost has more than a drift wrong with it
         elif self._bank is None and self._rebuild is None and self._drift_spacing > 0:
             self._bank = DriftBank(cfg, self._drift, self._drift_spacing, len(self._rec),
-                                   self._estimate, self._ref, self._ref_upto)  # fmt: skip
+                                   self._estimate, self._ref, self._ref_upto,
+                                   mounts=len(self.mounts))  # fmt: skip
         self._insert(ranges, kinds, sigma, heading.stamp_ns)
         r = self._rec
         r.add_node_if_due(self._travel, cfg.node_spacing_m)

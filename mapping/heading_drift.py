@@ -22,7 +22,8 @@ off, and a few degrees are not significant on 1.5 m of six IR beams.
   branch (s_hat, its reference map). A drift moves every pose since the start, and its
   evidence is the consistency of the map where the robot comes back, which only a map
   drawn at the branch's poses shows;
-- one scan per ``window_m / window_scans`` of travel (the window's own spacing) is scored
+- one scan per ``window_m / window_scans`` of travel (the window's own spacing, for the
+  layout's number of sensors) is scored
   against each branch's reference map at the branch's pose, on the beams that see mapped
   space in every branch's map: x_k, the tempered log-likelihood ratio of branch k over
   the null. The hypotheses were fixed before the data: nothing is fitted;
@@ -161,7 +162,7 @@ class Adoption:
 class DriftBank:
     """The drift hypotheses around ``drift`` (module doc), started at scan ``start``
     (the next scan recorded) from ``pose`` and the reference map ``ref`` (holding the
-    scans before ``ref_upto``)."""
+    scans before ``ref_upto``), for a robot with ``mounts`` IR sensors."""
 
     def __init__(
         self,
@@ -173,8 +174,11 @@ class DriftBank:
         ref: OccupancyGrid,
         ref_upto: int,
         next_travel: float = 0.0,
+        *,
+        mounts: int,
     ) -> None:
         self.cfg = cfg
+        self.window_scans = cfg.window_scans(mounts)  # the scored scans' spacing
         self.drift, self.spacing, self.start = drift, spacing, start
         # Until the first scan after the start comes of age every branch's map takes the
         # same scans at the same poses: one map, shared, copied when they part (exact).
@@ -246,7 +250,7 @@ class DriftBank:
         cfg = self.cfg
         if travel < self.next_travel or not self.branches or self.ref_upto != ref_upto:
             return None
-        self.next_travel = travel + cfg.window_m / max(cfg.window_scans, 1)
+        self.next_travel = travel + cfg.window_m / self.window_scans
         if len(kinds) == 0:
             return None
         lp0, blind = beam_model.terms(ref, estimate[None, :], sens, ranges, kinds)

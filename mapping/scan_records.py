@@ -7,7 +7,8 @@ the distance travelled when it was taken and its stamp. From these records come:
 
 - the beams of a span of scans, to insert into a grid (eq. 5-6);
 - the window of eq. 7: the scans of the last ``window_m`` of travel (short-term odometry
-  is good), at most ``window_scans`` of them, as sensor poses in the current robot frame;
+  is good), at most ``AssociationConfig.window_scans`` of them (about ``window_beams``
+  beams), as sensor poses in the current robot frame;
 - the nodes: a scan every ``node_spacing_m`` of travel (fig. 11 b), and the node the
   sample cloud covers (a sample within ``cover_radius_m``, fig. 11 c) among those at
   least ``min_loop_m`` of travel back, the nearest to the current estimate.
@@ -114,7 +115,8 @@ class ScanRecords:
         first = n - 1
         while first > 0 and self.travel[first - 1] >= travel - cfg.window_m:
             first -= 1
-        idx = np.unique(np.linspace(first, n - 1, min(cfg.window_scans, n - first)).round())
+        scans = cfg.window_scans(len(self.mounts))
+        idx = np.unique(np.linspace(first, n - 1, min(scans, n - first)).round())
         idx = idx.astype(int)
         poses = np.array([self.poses[i] for i in idx])
         rel = relative(estimate[None, :], poses)

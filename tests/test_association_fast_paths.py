@@ -222,8 +222,10 @@ class FormerBank(DriftBank):
     """The drift test as first written: a map per branch from the start, one insertion
     per branch, everything through the model's memo."""
 
-    def __init__(self, cfg, drift, spacing, start, pose, ref, ref_upto, next_travel=0.0):
-        super().__init__(cfg, drift, spacing, start, pose, ref, ref_upto, next_travel)
+    def __init__(self, cfg, drift, spacing, start, pose, ref, ref_upto, next_travel=0.0, *,
+                 mounts):  # fmt: skip
+        super().__init__(cfg, drift, spacing, start, pose, ref, ref_upto, next_travel,
+                         mounts=mounts)  # fmt: skip
         for b in self.branches:
             b.ref = ref.copy()
 

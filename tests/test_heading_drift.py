@@ -69,7 +69,8 @@ def test_every_branch_maps_the_scans_at_its_own_poses():
     bank = None
     for i, (p, scan) in enumerate(zip(truth, scans, strict=True)):
         if i == start:
-            bank = DriftBank(cfg, 0.0, 0.02, start, truth[i - 1], OccupancyGrid(GRID), 0)
+            bank = DriftBank(cfg, 0.0, 0.02, start, truth[i - 1], OccupancyGrid(GRID), 0,
+                             mounts=len(MOUNTS))  # fmt: skip
         if bank is not None:
             bank.move(relative(truth[i - 1], p))
         ranges, kinds = scan_kinds(scan)
@@ -120,7 +121,7 @@ def test_adopting_a_branch_moves_the_records_the_cloud_and_the_snapshots():
 def test_no_branch_is_scored_before_its_map_holds_the_same_scans():
     cfg = AssociationConfig()
     empty = OccupancyGrid(GRID)
-    bank = DriftBank(cfg, 0.0, 0.01, 0, np.zeros(3), empty, 0)
+    bank = DriftBank(cfg, 0.0, 0.01, 0, np.zeros(3), empty, 0, mounts=len(MOUNTS))
     sens, ranges, kinds = MOUNTS[:2], np.array([1.0, 2.0]), np.zeros(2, dtype=np.int8)
     assert bank.score(BeamModel(cfg), empty, 5, np.zeros(3), sens, ranges, kinds, 1.0) is None
     assert bank.scans == 0

@@ -16,6 +16,7 @@ from mapping.association import AssociationConfig, SampleAssociation
 from mapping.grid import GridConfig, OccupancyGrid
 from mapping.ir_inverse import IrInverseModel, beams_from_scan, scan_kinds
 from mapping.quality import compare
+from mapping.scan_records import ScanRecords
 from msgs import HeadingEstimate, IrScan, Pose2D
 
 GRID = GridConfig(resolution_m=0.1, origin_m=(-1.0, -1.0), size_m=(9.0, 9.0))
@@ -112,3 +113,21 @@ def test_configuration_and_input_errors_are_clear():
     bad = HeadingEstimate(1, math.nan, 0.0, Pose2D(math.nan, 0.0, 0.0))
     assert da.step(bad, IrScan(1, 0, 1, (2.0,) * 6, ("ok",) * 6, (2.0,) * 6)) is None
     assert da.skipped_readings == 6
+
+
+def test_a_window_holds_about_window_beams_beams_whatever_the_layout() -> None:
+    """The window of eq. 7 is counted in beams (AssociationConfig.window_scans): 8 scans
+    of the default six sensors, 12 of four, 6 of eight; the records give that many."""
+    cfg = AssociationConfig()
+    assert [cfg.window_scans(k) for k in (1, 3, 4, 5, 6, 7, 8)] == [48, 16, 12, 10, 8, 7, 6]
+    assert AssociationConfig(window_beams=5).window_scans(8) == 2  # never fewer than two
+    with pytest.raises(ValueError, match="window_beams"):
+        AssociationConfig(window_beams=0)
+    for k in (4, 6, 8):
+        mounts = np.column_stack([np.zeros(k), np.zeros(k), np.linspace(-1.5, 1.5, k)])
+        rec = ScanRecords(mounts)
+        for i in range(40):  # 2 m in 5 cm steps: more scans than a window takes
+            pose = np.array([0.05 * i, 0.0, 0.0])
+            rec.append(pose, 0.01, np.full(k, 2.0), np.zeros(k, dtype=np.int8), 0.05 * i, i)
+        sens, ranges, kinds = rec.window(np.array([1.95, 0.0, 0.0]), 1.95, cfg)
+        assert len(ranges) == cfg.window_scans(k) * k == 48
