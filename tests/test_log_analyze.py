@@ -216,8 +216,9 @@ def test_times_are_the_stamps_not_the_late_log_times(tmp_path: Path) -> None:
             w.write("/r1/truth", GroundTruth(t, "r1", Pose2D(x, y, th)), t)
             late = t + (3_000_000_000 if 100 <= i < 130 else 1_000_000)
             w.write("/r1/pose", PoseEstimate(t, Pose2D(x, y, th), (0.0,) * 9), late)
-    err = analyze(path).robots["r1"].paths["pose"].position.error_m
-    assert err.max < 1e-9
+    pos = analyze(path).robots["r1"].paths["pose"].position
+    assert pos.error_m.max < 1e-9
+    assert pos.relative_10m_m is None  # the loop is 8 m: no stretch of 10 m to score
 
 
 def test_shape_and_relative_errors_ignore_the_frame_and_see_a_scale() -> None:
@@ -242,3 +243,30 @@ def test_shape_and_relative_errors_ignore_the_frame_and_see_a_scale() -> None:
     assert rel == pytest.approx(0.05 * 10.0, rel=0.05)  # stretches just over 10 m long
     assert error_after_rigid_fit(large, ref) > 0.0
     assert np.isnan(relative_error(large, ref, 1e6))
+
+
+def test_relative_error_over_10_m_ignores_the_frame_and_is_reported(tmp_path: Path) -> None:
+    """Two laps (16 m) of a source drawn in a frame turned by 30 deg and shifted, heading
+    included: far from the truth, but its motions over 10 m are exact, and the report
+    says so (``relative_error_10m_m``)."""
+    from hilnav.log.writer import LogWriter
+    from msgs import GroundTruth, Pose2D, PoseEstimate
+    from tests.logsynth import T0, truth_path
+
+    t_s, lap = truth_path()
+    truth = np.concatenate([lap, lap])
+    t_s = np.concatenate([t_s, t_s + t_s[-1] + 0.1])
+    c, s = np.cos(np.radians(30.0)), np.sin(np.radians(30.0))
+    path = tmp_path / "laps.mcap"
+    with LogWriter(path, metadata={"robot": "r1"}, wall_clock=False) as w:
+        for ts, (x, y, th) in zip(t_s, truth, strict=True):
+            t = T0 + int(round(ts * 1e9))
+            w.write("/r1/truth", GroundTruth(t, "r1", Pose2D(x, y, th)), t)
+            p = Pose2D(c * x - s * y + 5.0, s * x + c * y - 2.0, wrap_angle(th + np.radians(30.0)))
+            w.write("/r1/pose", PoseEstimate(t, p, (0.0,) * 9), t)
+    a = analyze(path)
+    pos = a.robots["r1"].paths["pose"].position
+    assert pos.error_m.mean > 3.0
+    assert pos.relative_10m_m is not None and pos.relative_10m_m < 1e-9
+    rep = summary_json(a)["robots"]["r1"]["paths"]["pose"]
+    assert rep["relative_error_10m_m"] == pytest.approx(0.0, abs=1e-9)

@@ -5,7 +5,8 @@
   interpolated in time, or against the GPS fixes as ``gps_error`` defines it (the
   source's latest pose at each fix kept by the outlier rule); dead-reckoning sources are
   aligned to the reference at their first sample, and errors after the best rigid fit of
-  the whole track are given too.
+  the whole track are given too; against the truth, the mean error of the track's motions
+  over 10 m of travel as well (``geometry.relative_error``: what it gets wrong locally).
 - **heading drift per metre** (ir-grid-mapping.txt, eq. 2: encoders drift by about
   alpha = 3 deg/m): final |heading error| over the distance travelled, and the
   least-squares slope of |heading error| against distance; also for the gyro's integrated
@@ -19,7 +20,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hilnav.analysis.geometry import align_at_start, apply_fit, interp_pose, path_length, rigid_fit
+from hilnav.analysis.geometry import (
+    align_at_start,
+    apply_fit,
+    interp_pose,
+    path_length,
+    relative_error,
+    rigid_fit,
+)
 from hilnav.analysis.gps_error import errors_at_fixes
 from hilnav.analysis.result import (
     HeadingDrift,
@@ -31,6 +39,8 @@ from hilnav.analysis.result import (
 )
 from hilnav.analysis.tracks import DEAD_RECKONING, Track
 from numerics.angles import wrap
+
+RELATIVE_M = 10.0  # the relative error's distance of travel
 
 
 def stats(e: np.ndarray) -> Stats | None:
@@ -59,6 +69,7 @@ class SourceErrors:
     est_y: np.ndarray
     fit: tuple[float, float, float] = (0.0, 0.0, 0.0)  # best rigid fit (dx, dy, dtheta)
     pos_err_fit: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    relative_10m: float = math.nan  # mean error of the motions over 10 m (truth only)
 
 
 def source_errors(
@@ -109,6 +120,7 @@ def source_errors(
         dist = np.interp(te.astype(float), rt.astype(float), path_length(rx, ry))
         head = np.full(len(te), np.nan)
         return SourceErrors(te, ge.error, head, dist - dist[0], x, y, ge.fit, ge.error_fit)
+    rel = math.nan
     if name == "gyro":
         pos = fit_err = np.full(len(te), np.nan)
         fit = (0.0, 0.0, 0.0)
@@ -117,9 +129,12 @@ def source_errors(
         fit = rigid_fit(np.column_stack([ex, ey]), np.column_stack([qx, qy]))
         fx, fy = apply_fit(fit, ex, ey)
         fit_err = np.hypot(fx - qx, fy - qy)
+        if np.all(np.isfinite(eth)) and np.all(np.isfinite(qth)):
+            rel = relative_error(np.column_stack([ex, ey, eth]), np.column_stack([qx, qy, qth]),
+                                 RELATIVE_M)  # fmt: skip
     dist = np.interp(te.astype(float), rt.astype(float), path_length(rx, ry))
     dist = dist - dist[0]
-    return SourceErrors(te, pos, head, dist, x, y, fit, fit_err)
+    return SourceErrors(te, pos, head, dist, x, y, fit, fit_err, rel)
 
 
 def drift_per_metre(head_err: np.ndarray, dist: np.ndarray) -> HeadingDrift | None:
@@ -147,6 +162,7 @@ def source_track(name: str, e: SourceErrors, ref_has_heading: bool) -> SourceTra
             initial_m=float(e.pos_err[0]),
             after_rigid_fit_m=stats(e.pos_err_fit),
             rigid_fit=fit,
+            relative_10m_m=e.relative_10m if math.isfinite(e.relative_10m) else None,
         )
     heading = None
     if ref_has_heading:

@@ -58,6 +58,8 @@ def _source(s: SourceTrack) -> JsonDict:
             "dy_m": p.rigid_fit.dy_m,
             "dtheta_deg": p.rigid_fit.dtheta_deg,
         }
+        if p.relative_10m_m is not None:
+            out["relative_error_10m_m"] = p.relative_10m_m
     if s.heading is not None:
         out["heading_error_deg"] = _stats(s.heading.error_deg)
         out["heading_drift"] = _drift(s.heading.drift)

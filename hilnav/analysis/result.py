@@ -52,6 +52,7 @@ class PositionErrors:
     initial_m: float
     after_rigid_fit_m: Stats | None
     rigid_fit: RigidFit
+    relative_10m_m: float | None = None  # the motions over 10 m of travel (truth only)
 
 
 @dataclass(frozen=True)
