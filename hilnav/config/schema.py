@@ -194,9 +194,9 @@ class MappingService:
     """IR occupancy grid, optionally with sample-based data association (eq. 7-8).
 
     The association's acceptance tests were validated with the default six IR mounts
-    (on the Intel laser log: never worse than no association in 8 seeds); with three or
-    four mounts it made 1 seed in 4 worse there (eight mounts: none). With another
-    layout, run
+    (on the Intel laser log: never worse than no association in 8 seeds); there, with
+    four mounts 2 seeds in 8 were worse, with three 1 in 4, with eight none in 8. With
+    another layout, run
     ``bench/ir_real.py DIR --mounts ...`` on a log of the building before relying on
     it (docs/benchmarks.md, "IR mapping on real data")."""
 
