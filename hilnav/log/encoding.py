@@ -142,22 +142,16 @@ class Encoder:
         self._state = foxglove.ViewState()
         self._lock = threading.Lock()
 
-    def encode(self, topic: str, msg: Any) -> list[Record]:
+    def encode(self, topic: str, msg: Any, native: bytes | None = None) -> list[Record]:
+        """The native record, then the views. ``native``: the bytes ``msg`` was decoded
+        from (its record in a log being replayed), used instead of encoding it again."""
         cls = type(msg)
         name = _schema_name(cls)
         memo = self.memo
         if memo is not None and self.views and cls in memo.classes:
             return self._shared(memo, topic, name, msg)
-        return [Record(topic, name, msgs.encode(msg), cls), *self.views_of(topic, msg)]
-
-    def recorded(self, topic: str, msg: Any, data: bytes) -> list[Record]:
-        """:meth:`encode` of a message decoded from ``data`` (its native record in a log
-        being replayed): ``data`` itself, then the views made of ``msg``."""
-        cls = type(msg)
-        name = _schema_name(cls)
-        if self.memo is not None and self.views and cls in self.memo.classes:
-            return self._shared(self.memo, topic, name, msg)
-        return [Record(topic, name, bytes(data), cls), *self.views_of(topic, msg)]
+        data = msgs.encode(msg) if native is None else bytes(native)
+        return [Record(topic, name, data, cls), *self.views_of(topic, msg)]
 
     @property
     def splits(self) -> bool:

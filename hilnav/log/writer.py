@@ -176,19 +176,17 @@ class LogWriter:
         self.bytes_written += len(data)
 
     def write(
-        self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None
+        self,
+        topic: str,
+        msg: Any,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        native: bytes | None = None,
     ) -> None:
-        """Log ``msg`` (a msgs dataclass) on ``topic`` and its Foxglove views."""
+        """Log ``msg`` (a msgs dataclass) on ``topic`` and its Foxglove views. ``native``:
+        the bytes it was decoded from (a replayed log's record), logged as they are."""
         log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)  # refused before encoding
-        self.write_records(self._encoder.encode(topic, msg), log_ns, pub_ns)
-
-    def write_recorded(
-        self, topic: str, msg: Any, data: bytes, log_time_ns: int, publish_time_ns: int
-    ) -> None:
-        """Log ``msg`` as :meth:`write` does, with ``data`` (the bytes it was decoded from,
-        the native record of a log being replayed) instead of encoding it again."""
-        log_ns, pub_ns = _times(topic, log_time_ns, publish_time_ns)
-        self.write_records(self._encoder.recorded(topic, msg, data), log_ns, pub_ns)
+        self.write_records(self._encoder.encode(topic, msg, native), log_ns, pub_ns)
 
     def write_records(
         self, records: Sequence[Record], log_time_ns: int, publish_time_ns: int | None = None

@@ -217,7 +217,7 @@ class _Router:
             rep.passed += 1
             return
         msg = lm.msg
-        self.w.write_recorded(r.topic, msg, r.data, r.log_time_ns, r.publish_time_ns)
+        self.w.write(r.topic, msg, r.log_time_ns, r.publish_time_ns, native=r.data)
         if not mine:
             rep.passed += 1
             self._other_robot(r, who, kind, msg)
