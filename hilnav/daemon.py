@@ -1,10 +1,12 @@
-"""The robot daemon: device threads, one service loop, the Zenoh bus and the MCAP log.
+"""The robot daemon: one device loop, the services, the Zenoh bus and the MCAP log.
 
-One reader thread per device (drivers from :mod:`hilnav.devices`) puts the raw bytes of
-each read and its decoded messages on ONE queue, as one entry per read. One service loop
-(the :class:`hilnav.runtime.RobotRuntime`'s consumer) takes them in arrival order, feeds
-the :class:`hilnav.pipeline.Pipeline` (its mapping worker runs in its own thread), and
-publishes and logs as :mod:`hilnav.topics` says, each service output the moment it is
+One device loop (:class:`hilnav.devloop.DeviceLoop`, one thread on epoll) reads every
+device whose link is up (drivers from :mod:`hilnav.devices`; a thread per device only
+while its link is down and being reopened) and takes the ONE queue that other threads
+(Zenoh's callbacks, the watchdog) put their entries on. In that thread and in arrival
+order, the :class:`hilnav.runtime.RobotRuntime` feeds the raw bytes of each read and its
+decoded messages to the :class:`hilnav.pipeline.Pipeline` (its mapping worker runs in its
+own thread), and publishes and logs as :mod:`hilnav.topics` says, each service output the moment it is
 made and each message encoded once for bus and log; every ``diagnostics_period_s`` it
 emits a msgs.DeviceDiagnostics per device and a msgs.DaemonStatus. ``cmd_vel`` from the fleet reaches the wheels through the
 :class:`hilnav.motion.MotionGuard`, whose watchdog thread stops the robot on a command

@@ -62,7 +62,7 @@ def test_every_key_and_comment_of_the_example_file_is_in_the_reference():
 
 def test_readme_keeps_the_two_quickstart_commands():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert "python3 -m pip install -e . && hilnav demo" in readme
+    assert "python3 -m pip install -e . && python3 -m hilnav demo" in readme
     assert 'python3 -m pip install -e ".[test]" && python3 -m pytest' in readme
 
 

@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     csub = p.add_subparsers(dest="config_command", metavar="ACTION")
     c = csub.add_parser("check", help="validate FILE: one clear message if anything is wrong")
-    c.add_argument("file")
+    c.add_argument("file", help="robot TOML file")
     c.set_defaults(func=check)
     e = csub.add_parser("example", help="print the example config (the embedded defaults)")
     e.set_defaults(func=example)

@@ -63,7 +63,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated world")
     p.add_argument("--speed", type=float, default=0.5, help="cruise speed, m/s")
     p.add_argument(
-        "--laps", type=int, default=len(TOUR), help="drive only the first N waypoints of the tour"
+        "--waypoints",
+        "--laps",  # its old name
+        dest="waypoints",
+        type=int,
+        default=len(TOUR),
+        help=f"drive only the first N waypoints of the tour (default all {len(TOUR)})",
     )
     p.set_defaults(func=run)
 
@@ -203,7 +208,7 @@ def run(args: argparse.Namespace) -> int:
             "driving the tour over cmd_vel (10 Hz), steering on "
             + ("the simulator's truth" if op.truth is not None else "the pose estimate")
         )
-        waypoints = TOUR[: max(1, args.laps)]
+        waypoints = TOUR[: max(1, args.waypoints)]
         t_drive = time.monotonic()
         reached = op.drive(waypoints, args.speed, time.monotonic() + 80.0)
         for _ in range(5):

@@ -25,7 +25,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         "they are ready, then runs until SIGINT/SIGTERM or --duration. The robot (name, wheel "
         "base, IR board and mounts, rates, GPS datum, [simulation]) comes from --config or "
         "the defaults; the options below override it.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument(
         "--config",
@@ -63,8 +62,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--ir-link",
         default=None,
         choices=("serial", "slcan", "python-can"),
-        help="IR board on its serial port, or on CAN behind an emulated slcan adapter "
-        "(default: the config's devices.ir.link; serial without --config)",
+        help="IR board on its serial port, or on CAN: behind an emulated slcan adapter "
+        "(slcan) or on a python-can bus (python-can) (default: the config's "
+        "devices.ir.link; serial without --config)",
     )
     p.add_argument("--ir-rate", type=int, default=None, help="IR board samples per second [20]")
     p.add_argument("--gyro-rate", type=int, default=None, help="gyro packets per second [100]")

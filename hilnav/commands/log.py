@@ -14,7 +14,10 @@ from hilnav.errors import CliError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("log", help="inspect (info, cat) and repair (recover) MCAP logs")
+    p = sub.add_parser(
+        "log",
+        help="inspect (info, cat), repair (recover) and export CAN frames from (export-can) MCAP logs",
+    )
     lsub = p.add_subparsers(dest="log_command", metavar="ACTION")
     info = lsub.add_parser(
         "info", help="topics, schemas, counts, rates and duration of a log (also truncated)"

@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=list_ports)
     dev = p.add_subparsers(dest="device", metavar="DEVICE")
     a = dev.add_parser("arcos", help="a Pioneer (ARCOS): robot info, then one object per SIP")
-    a.add_argument("port")
+    a.add_argument("port", help="the Pioneer's serial port, a pyserial URL or a file of bytes")
     a.add_argument(
         "--baud",
         type=int,

@@ -15,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "run",
         help="run the robot daemon (devices, services, Zenoh, MCAP log)",
-        description="Run the daemon of one robot: a reader thread per device, the services, "
+        description="Run the daemon of one robot: one device loop reading every device, the services, "
         "publishing on Zenoh under hilnav/<robot>/<topic>, logging every message to one MCAP "
         "file. Without --config: the embedded defaults, a simulated Pioneer with all sensors "
         "(the emulated devices are started as a subprocess). SIGINT/SIGTERM stop the motors, "
