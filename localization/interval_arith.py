@@ -206,10 +206,6 @@ class IV:
     def __rtruediv__(self, other) -> IV:
         return _div(as_iv(other), self)
 
-    def reciprocal(self) -> IV:
-        """1/x: [1/hi, 1/lo] off zero; a half-line if 0 is an end; entire if 0 is inside."""
-        return _div(IV.of(np.ones(self.shape)), self)
-
     def scale(self, k) -> IV:
         """Multiplication by exact real scalars/arrays ``k``."""
         return self * IV.of(k)

@@ -95,9 +95,6 @@ class MrclamRun:
     def end_s(self) -> float:
         return max(float(r.odometry[-1, 0]) for r in self.robots.values())
 
-    def is_robot(self, subject: int) -> bool:
-        return subject in self.robots
-
 
 def _table(path: Path, columns: int) -> np.ndarray:
     """The numeric rows of ``path`` (comment lines skipped) as an (n, columns) array."""

@@ -31,12 +31,6 @@ class EkfTrack:
     #: (n,) True for the rows of the uniform grid (None: every row).
     on_grid: np.ndarray | None = None
 
-    def index_at(self, t: np.ndarray | float) -> np.ndarray:
-        """Row of the latest estimate at or before each ``t`` (the first row before it;
-        at most ``output_period_s`` old between grid rows)."""
-        i = np.searchsorted(self.t, np.atleast_1d(np.asarray(t, float)), side="right") - 1
-        return np.clip(i, 0, len(self.t) - 1)
-
     def sigma(self) -> np.ndarray:
         """(n, 3) standard deviations of x, y, theta."""
         return np.sqrt(np.maximum(np.diagonal(self.cov, axis1=1, axis2=2), 0.0))

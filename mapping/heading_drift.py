@@ -270,7 +270,3 @@ class DriftBank:
         if best.lam < self.threshold:
             return None
         return Adoption(best, self.start, best.lam, self.threshold, self.scans, self.beams)
-
-    def leader(self) -> Branch | None:
-        """The branch with the largest statistic so far."""
-        return max(self.branches, key=lambda b: b.lam) if self.branches else None

@@ -6,8 +6,6 @@ moves (fig. 9), weighted with the beam model of eq. 7-8, resampled and summarise
   growth of the heading filter's variance (the filter of eq. 1-4 treats the gyro's scale
   error as white and is overconfident over tens of metres; the cloud must cover the
   real error to find a node), the position noise with the distance;
-- :func:`tempered_weights`: normalised weights from the log-likelihood of eq. 7
-  divided by ``temperature`` (nearby beams are not independent);
 - :func:`systematic`: systematic resampling;
 - :func:`mean_std`: the weighted mean and spread (heading on the circle);
 - :func:`smc_posterior`: the posterior by tempering (sequential Monte Carlo): the
@@ -57,13 +55,6 @@ def systematic(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     n = len(weights)
     pos = (rng.random() + np.arange(n)) / n
     return np.minimum(np.searchsorted(np.cumsum(weights), pos), n - 1)
-
-
-def tempered_weights(ll: np.ndarray, temperature: float) -> np.ndarray:
-    """Normalised weights exp(ll / temperature)."""
-    a = ll / temperature
-    w = np.exp(a - a.max())
-    return w / w.sum()
 
 
 def mean_std(parts: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

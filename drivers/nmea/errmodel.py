@@ -31,11 +31,6 @@ UERE_DGPS = (3.75, 5.75, 4.75)
 _MAX_RATE = 9999.9
 
 
-def _emax(x: float | None, y: float | None) -> float | None:
-    """C's ``x > y ? x : y`` with NaN as None (a NaN anywhere compares false)."""
-    return x if x is not None and y is not None and x > y else y
-
-
 def earth_distance(lat1, lon1, lat2, lon2) -> float | None:
     """Vincenty's inverse formula on WGS84 (metres); None if a point is unknown or the
     iteration does not converge (gpsd's earth_distance)."""
