@@ -262,6 +262,7 @@ class MappingAdapter:
         self.heading: HeadingEstimate | None = None
         self.scans = 0
         self.mismatched = 0
+        self.refused = 0  # plain map: scans where the grid may not grow (max_cells)
         self.filter = MotionFilter(motion_filter_config(cfg))
         self._last_map_ns: int | None = None
         self._last_scan_ns: int | None = None
@@ -304,10 +305,13 @@ class MappingAdapter:
                 if report is not None:
                     out.append(("association", report))
             else:
-                sigma = math.sqrt(max(self.heading.variance_rad2, 0.0))
-                self._model.integrate(
-                    self._grid, beams_from_scan(self.heading.pose, sigma, msg, self.mounts)
-                )
+                h = self.heading.pose
+                box = self._model.scan_box(np.array([h.x, h.y, h.theta]), self.mounts)
+                if self._grid.fits(*box):
+                    sigma = math.sqrt(max(self.heading.variance_rad2, 0.0))
+                    self._model.integrate(self._grid, beams_from_scan(h, sigma, msg, self.mounts))
+                else:
+                    self.refused += 1
         if self._last_map_ns is None or msg.stamp_ns - self._last_map_ns >= self.period_ns:
             self._last_map_ns = msg.stamp_ns
             out.append(("map", self.map_msg(msg.stamp_ns)))
@@ -333,6 +337,9 @@ class MappingAdapter:
         text = (f"{self.scans + self.mismatched} IR scans: {f.kept} mapped, {f.dropped} left "
                 f"out by the motion filter, {f.unplaced} without a finite pose, "
                 f"{self.mismatched} of the wrong width")  # fmt: skip
+        refused = self.da.refused_scans if self.da is not None else self.refused
+        if refused:
+            text += f", {refused} refused beyond the grid's max_cells"
         if self.finished and self.da is not None and self.da.graph_outcome:
             text += f"; pose graph: {self.da.graph_outcome}"
         return text

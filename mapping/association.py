@@ -82,6 +82,10 @@ from mapping.scan_records import ScanRecords
 from mapping.se2 import compose, relative, wrap
 from msgs import AssociationReport, HeadingEstimate, IrScan, Pose2D
 
+FIT_MARGIN_M = 10.0
+"""A scan is refused this close to the grid's limit: the drift hypotheses' maps take it
+at poses up to a few metres from the estimate's."""
+
 
 class SampleAssociation:
     """Builds an IR occupancy grid while correcting the pose by sample-based association.
@@ -140,6 +144,7 @@ class SampleAssociation:
         self.reports: list[AssociationReport] = []
         self.cell_updates = 0
         self.skipped_readings = 0
+        self.refused_scans = 0  # taken where the grid may not grow (max_cells)
         self.reinserted_scans = 0
         self._beam_model = BeamModel(self.config)
         self._field = FieldBeamModel(self.config)
@@ -183,13 +188,19 @@ class SampleAssociation:
             self.skipped_readings += len(scan.status)
             return None
         var = heading.variance_rad2 if math.isfinite(heading.variance_rad2) else self._prev_var
-        self._move(p_in, var)
         ranges, kinds = scan_kinds(scan)
         if len(kinds) != len(self.mounts):
             raise ValueError(
                 f"IR scan has {len(kinds)} channels but {len(self.mounts)} mounts are "
                 "configured: give one (x, y, yaw) mount per channel"
             )
+        if not self.grid.fits(*self.model.scan_box(self._moved(p_in), self.mounts, FIT_MARGIN_M)):
+            # Beyond the grid's max_cells: refused before anything changes (a record the
+            # maps could not take would stop every later insertion). The next scan taken
+            # moves the estimate over the whole span, as after the motion filter's gaps.
+            self.refused_scans += 1
+            return None
+        self._move(p_in, var)
         self.skipped_readings += int((kinds == KIND_SKIP).sum())
         sigma = math.sqrt(max(self._var_base + max(var - self._var_at, 0.0), 0.0))
         self._sigma = sigma
@@ -260,6 +271,12 @@ class SampleAssociation:
         return self._beam_model.log_likelihood(self._ref, poses, sens, ranges, kinds)
 
     # -- internals -------------------------------------------------------------------------
+    def _moved(self, p_in: np.ndarray) -> np.ndarray:
+        """Where :meth:`_move` would put the estimate (nothing changes)."""
+        if self._estimate is None or self._prev_in is None:
+            return p_in
+        return compose(self._estimate, drifted_step(relative(self._prev_in, p_in), self._drift))
+
     def _move(self, p_in: np.ndarray, var: float) -> None:
         """Dead-reckon the estimate and spread the cloud by the step to ``p_in``."""
         if self._estimate is None:

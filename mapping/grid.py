@@ -101,23 +101,36 @@ class OccupancyGrid:
         rows, cols = self.shape
         return (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
 
-    def ensure(self, xmin: float, ymin: float, xmax: float, ymax: float) -> bool:
-        """Grow (by whole cells, in chunks) so the box is inside; True if it grew."""
+    def _growth(self, xmin: float, ymin: float, xmax: float, ymax: float) -> tuple[int, ...]:
+        """(left, down, right, up): the cells to add on each side to hold the box."""
         if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax)):
             raise ValueError("grid ensure(): box must be finite")
         gx0, gy0, gx1, gy1 = self.extent
         if xmin >= gx0 and ymin >= gy0 and xmax < gx1 and ymax < gy1:
-            return False
+            return (0, 0, 0, 0)
         res = self.resolution
         chunk = int(math.ceil(self.config.grow_chunk_m / res))
 
         def need(lo_gap: float) -> int:
             return 0 if lo_gap <= 0 else int(math.ceil(lo_gap / res)) + chunk
 
-        left = need(gx0 - xmin)
-        down = need(gy0 - ymin)
-        right = need(xmax - gx1 + res)
-        up = need(ymax - gy1 + res)
+        return (need(gx0 - xmin), need(gy0 - ymin), need(xmax - gx1 + res), need(ymax - gy1 + res))
+
+    def fits(self, xmin: float, ymin: float, xmax: float, ymax: float) -> bool:
+        """Whether the box is inside or the grid may grow to hold it (``max_cells``);
+        False for a box that is not finite. Nothing changes."""
+        if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax)):
+            return False
+        left, down, right, up = self._growth(xmin, ymin, xmax, ymax)
+        rows, cols = self.shape
+        return (rows + down + up) * (cols + left + right) <= self.config.max_cells
+
+    def ensure(self, xmin: float, ymin: float, xmax: float, ymax: float) -> bool:
+        """Grow (by whole cells, in chunks) so the box is inside; True if it grew."""
+        left, down, right, up = self._growth(xmin, ymin, xmax, ymax)
+        if not (left or down or right or up):
+            return False
+        res = self.resolution
         rows, cols = self.shape
         new_rows, new_cols = rows + down + up, cols + left + right
         if new_rows * new_cols > self.config.max_cells:

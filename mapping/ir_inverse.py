@@ -175,6 +175,17 @@ class IrInverseModel:
         h = np.maximum(c.sigma_multiple * np.asarray(sigma_rad, dtype=float), c.min_half_angle_rad)
         return np.minimum(h, c.max_half_angle_rad, out=h)  # np.clip, without its wrappers
 
+    def scan_box(
+        self, pose: np.ndarray, mounts: np.ndarray, margin_m: float = 0.0
+    ) -> tuple[float, float, float, float]:
+        """(xmin, ymin, xmax, ymax) that any beam of a scan taken at ``pose`` (x, y, theta)
+        from sensors at ``mounts`` (K, 3) may update, widened by ``margin_m``."""
+        c, s = math.cos(float(pose[2])), math.sin(float(pose[2]))
+        x = float(pose[0]) + c * mounts[:, 0] - s * mounts[:, 1]
+        y = float(pose[1]) + s * mounts[:, 0] + c * mounts[:, 1]
+        r = self.config.max_range_m + self.config.hit_halfwidth_m + margin_m
+        return (float(x.min()) - r, float(y.min()) - r, float(x.max()) + r, float(y.max()) + r)
+
     def reach(self, beams: Beams, res: float) -> np.ndarray:
         """Length of each beam's cone: past the hit by the occupied band's half width,
         the maximum range for a beam that saw nothing (a NaN hit: the band only)."""

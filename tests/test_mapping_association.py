@@ -131,3 +131,31 @@ def test_a_window_holds_about_window_beams_beams_whatever_the_layout() -> None:
             rec.append(pose, 0.01, np.full(k, 2.0), np.zeros(k, dtype=np.int8), 0.05 * i, i)
         sens, ranges, kinds = rec.window(np.array([1.95, 0.0, 0.0]), 1.95, cfg)
         assert len(ranges) == cfg.window_scans(k) * k == 48
+
+
+def test_a_scan_beyond_the_grid_limit_is_refused_and_mapping_resumes_back_inside() -> None:
+    """A robot that drives past what ``max_cells`` lets the grid hold: those scans are
+    refused and counted before anything records them (a record the maps could not take
+    would stop every later insertion), nothing raises, and the scans are mapped again
+    once it is back."""
+    da = SampleAssociation(MOUNTS, grid_config=GridConfig(max_cells=800 * 800))
+    xs = [0.1 * k for k in range(400)]  # 40 m east and back, in 10 cm steps
+    for k, x in enumerate(xs + xs[::-1]):
+        h = HeadingEstimate(k * 10**8, 0.0, 1e-4, Pose2D(x, 0.0, 0.0))
+        da.step(h, IrScan(k * 10**8, 0, k, (2.0,) * 6, ("ok",) * 6, (2.0,) * 6))
+    assert 0 < da.refused_scans < 800
+    tr = da.trajectory
+    assert len(tr) + da.refused_scans == 800
+    assert 10.0 < tr[:, 0].max() < 40.0 and tr[-1, 0] == pytest.approx(0.0)  # mapped again
+    rows, cols = da.grid.shape
+    assert rows * cols <= 800 * 800
+
+
+def test_grid_fits_says_whether_it_may_grow_without_growing() -> None:
+    g = OccupancyGrid(GridConfig(size_m=(10.0, 10.0), max_cells=400 * 400))
+    assert g.fits(-4.0, -4.0, 4.0, 4.0) and g.fits(-4.0, -4.0, 12.0, 4.0)
+    assert not g.fits(-4.0, -4.0, 40.0, 4.0) and not g.fits(0.0, 0.0, math.inf, 1.0)
+    assert g.shape == (200, 200)  # nothing grew
+    assert g.ensure(-4.0, -4.0, 12.0, 4.0)
+    with pytest.raises(ValueError, match="max_cells"):
+        g.ensure(-4.0, -4.0, 40.0, 4.0)

@@ -96,6 +96,18 @@ def test_a_scan_without_a_finite_pose_is_counted_not_mapped() -> None:
     assert "1 without a finite pose" in a.summary()
 
 
+@pytest.mark.parametrize("association", [False, True])
+def test_a_scan_the_grid_cannot_hold_is_refused_and_counted(association: bool) -> None:
+    """A pose 1,000 km out (the grid may hold 25 M cells): the scan is refused and
+    counted, nothing raises, and the scans back home are mapped."""
+    a = MappingAdapter(parse_config({"services": {"mapping": {"association": association}}}))
+    _feed(a, [Pose2D(0.0, 0.0, 0.0), Pose2D(1e6, 0.0, 0.0), Pose2D(0.1, 0.0, 0.0)])
+    assert a.filter.kept == 3 and a.grid.updates > 0
+    assert "1 refused beyond the grid's max_cells" in a.summary()
+    rows, cols = a.grid.shape
+    assert rows * cols < 1_000_000
+
+
 @pytest.mark.parametrize("graph", [False, True])
 def test_the_end_of_a_run_gives_the_final_map_once(graph: bool) -> None:
     """``finish()``: nothing before the first scan; then the final map stamped at the last
