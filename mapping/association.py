@@ -246,7 +246,11 @@ class SampleAssociation:
             self.graph_outcome = "no loop edge" if g is not None else "off"
             return self.grid
         r = self._rec
-        grid, updates = rebuilt_map(r, new, self.model, self._grid_config)
+        try:
+            grid, updates = rebuilt_map(r, new, self.model, self._grid_config)
+        except ValueError as e:  # the graph's poses need more than max_cells
+            self.graph_outcome = f"kept the association's map (the graph's map: {e})"
+            return self.grid
         self.cell_updates += updates
         occ_old, occ_new = occupied_cells(self.grid), occupied_cells(grid)
         self.graph_outcome = (f"{len(g.loops)} loop edges, {len(set(g.scans))} nodes: "

@@ -159,3 +159,18 @@ def test_grid_fits_says_whether_it_may_grow_without_growing() -> None:
     assert g.ensure(-4.0, -4.0, 12.0, 4.0)
     with pytest.raises(ValueError, match="max_cells"):
         g.ensure(-4.0, -4.0, 40.0, 4.0)
+
+
+def test_a_graph_map_the_grid_cannot_hold_keeps_the_associations_map() -> None:
+    """finish(): if the map at the pose graph's poses would need more than ``max_cells``
+    (here a limit set below the map already drawn), the association's map stays and
+    the outcome says why; nothing raises."""
+    truth, scans, est = _drive(1.05)
+    da = _with_da(est, scans)
+    assert da._graph is not None and da._graph.loops  # the graph has something to solve
+    before = da.grid.logodds.copy()
+    da._grid_config = GridConfig(resolution_m=0.1, origin_m=(-1.0, -1.0), size_m=(9.0, 9.0),
+                                 max_cells=90 * 90)  # fmt: skip
+    assert da.finish() is da.grid
+    assert da.graph_outcome.startswith("kept the association's map (the graph's map: grid")
+    np.testing.assert_array_equal(da.grid.logodds, before)
