@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from drivers.clock import CLOCK
 from msgs import DeviceDiagnostics
 
 Clock = Callable[[], int]
@@ -26,8 +27,9 @@ RawHook = Callable[[bytes, int], None]
 
 
 def wall_clock_ns() -> int:
-    """Default clock of drivers: UTC wall time in nanoseconds."""
-    return time.time_ns()
+    """Default clock of drivers: UTC wall time in nanoseconds that never goes back
+    (:mod:`drivers.clock`: it follows the wall clock's steps forward, not back)."""
+    return CLOCK.now_ns()
 
 
 @dataclass

@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from drivers.clock import now_ns
 from hilnav.bus import Bus, ZenohSettings
 from hilnav.config import RobotConfig
 from hilnav.devices import DEVICES, make_drivers, with_fake_ports
@@ -276,7 +277,7 @@ class Daemon:
     def _on_motion_stop(self, reason: str) -> None:
         if reason == "stall":
             self._fault("services", RuntimeError("service loop stalled: robot stopped"))
-        self._put("cmd_vel", VelocityCommand(time.time_ns(), source=f"{self.robot}/{reason}"))
+        self._put("cmd_vel", VelocityCommand(now_ns(), source=f"{self.robot}/{reason}"))
 
     def _fault(self, where: str, exc: BaseException) -> None:
         self.runtime.fault(where, exc)
@@ -290,7 +291,7 @@ class Daemon:
             rt.guard("diagnostics", self._diagnostics)
 
     def _diagnostics(self) -> None:
-        stamp = time.time_ns()
+        stamp = now_ns()
         for drv in self.drivers.values():
             try:
                 d = drv.diagnostics(stamp)

@@ -57,6 +57,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from drivers.clock import now_ns
+
 PendingItems = list[tuple[str, Any]]
 POLL_ROUNDS = 8  # reads of a polled device in one turn at most (8 x 4 KiB: ~1 MB/s at 30 Hz)
 
@@ -287,7 +289,7 @@ class DeviceLoop:
                 backlog = self._backlog
                 if not backlog:
                     self._backlog_since = entry[2]
-                self.runtime.handle_read(items, time.time_ns(), later=backlog,
+                self.runtime.handle_read(items, now_ns(), later=backlog,
                                          prompt=self.prompt_topics)  # fmt: skip
             if not getattr(drv, "buffered", _false)():
                 break

@@ -18,10 +18,10 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Iterable
 from typing import Any
 
+from drivers.clock import now_ns
 from fakes.runner import FakeRunner
 from fakes.world import World
 from hilnav.config import ConfigError, RobotConfig, config_data, parse_config
@@ -125,7 +125,7 @@ class TruthPublisher:
             return
         self._due -= int(self._due)
         r = self._runner.world.robots[self.robot]
-        msg = GroundTruth(time.time_ns(), self.robot, r.pose, r.speed_mps, r.yaw_rate_radps)
+        msg = GroundTruth(now_ns(), self.robot, r.pose, r.speed_mps, r.yaw_rate_radps)
         try:
             self.bus.publish("truth", msg)
             self.published += 1

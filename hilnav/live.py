@@ -16,12 +16,12 @@ come first, a ``subscribe`` gets binary ``messageData`` frames of the subscribed
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Sequence
 from typing import Any
 
 import foxglove
 
+from drivers.clock import now_ns
 from hilnav.bus import Bus
 from hilnav.log.encoding import Encoder, Record, dumps, stamp_of
 from hilnav.topics import log_topic
@@ -124,6 +124,6 @@ def serve_bus(bus: Bus, bridge: LiveBridge) -> Any:
     subscriber (undeclared when the bus closes)."""
 
     def on_message(robot: str, topic: str, msg: Any) -> None:
-        bridge.write(log_topic(robot, topic), msg, time.time_ns(), stamp_of(msg))
+        bridge.write(log_topic(robot, topic), msg, now_ns(), stamp_of(msg))
 
     return bus.subscribe_all(on_message)

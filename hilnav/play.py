@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from drivers.clock import now_ns
 from hilnav.bus import Bus, check_name
 from hilnav.log.cat import wanted
 from hilnav.log.reader import RawRecord, ReadStats, is_view, iter_raw, message_types
@@ -150,7 +151,7 @@ class Player:
                 continue
             if first is None:
                 first, wall0 = r.log_time_ns, time.monotonic()
-                offset = max(time.time_ns() - first, self._min_offset)
+                offset = max(now_ns() - first, self._min_offset)
             delay = wall0 + (r.log_time_ns - first) / 1e9 / self.rate - time.monotonic()
             if self.stop.wait(delay) if delay > 0 else self.stop.is_set():
                 return n

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from drivers.clock import now_ns
 from hilnav.bus import Bus, ZenohSettings, zenoh_problem
 from hilnav.bus_session import BusSession
 from hilnav.config import RobotConfig
@@ -199,12 +200,12 @@ class RobotRuntime(RuntimeQueue):
             self.put("", alive, peer=robot)
 
     def _from_mapping(self, topic: str, msg: Any, recv_ns: Any) -> None:
-        self.emit(topic, msg, int(recv_ns or time.time_ns()), publish=not self.closing.is_set())
+        self.emit(topic, msg, int(recv_ns or now_ns()), publish=not self.closing.is_set())
 
     def _from_service(self, topic: str, msg: Any, recv_ns: Any) -> None:
         """A service's output, the moment it is made (the pose before CP runs)."""
         publish = self._publishing and not self.closing.is_set()
-        self.emit(topic, msg, int(recv_ns or time.time_ns()), publish)
+        self.emit(topic, msg, int(recv_ns or now_ns()), publish)
 
     def fault(self, where: str, exc: BaseException) -> None:
         """Count a fault, keep it for ``status``, print its first occurrence per kind."""
@@ -238,7 +239,7 @@ class RobotRuntime(RuntimeQueue):
         handled by the consumer's thread (the daemon's loop reads devices itself). With
         ``later``, the items go to the services now but are logged and published by
         :meth:`emit_later`, except those of a ``prompt`` topic (odometry, before its pose)."""
-        now = time.time_ns() if recv_ns is None else recv_ns
+        now = now_ns() if recv_ns is None else recv_ns
         for topic, msg in pending:
             try:
                 if topic in prompt:
@@ -301,7 +302,7 @@ class RobotRuntime(RuntimeQueue):
         for robot, (_, why) in zip(
             gone, self.peers.dropped[len(self.peers.dropped) - len(gone) :], strict=True
         ):
-            self._peer_event(time.time_ns(), robot, False, why)
+            self._peer_event(now_ns(), robot, False, why)
             self.guard("services", self.pipeline.drop_peer, robot)
 
     def _handle(self, item: Item, publish: bool) -> None:

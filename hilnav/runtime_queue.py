@@ -13,9 +13,10 @@ runtimes, a fleet host, waits on one event).
 from __future__ import annotations
 
 import queue
-import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
+
+from drivers.clock import now_ns
 
 
 class Wake(Protocol):
@@ -67,7 +68,7 @@ class RuntimeQueue:
         if self._q.qsize() >= self._queue_size:
             self.stats.dropped += 1
         else:
-            self._q.put(Item(topic, msg, recv_ns or time.time_ns(), peer))
+            self._q.put(Item(topic, msg, recv_ns or now_ns(), peer))
         wake = self.wake  # (queued first: a consumer that clears it then takes the item)
         if wake is not None and topic not in self.lazy and not wake.is_set():
             wake.set()
@@ -79,7 +80,7 @@ class RuntimeQueue:
         if self._q.qsize() >= self._queue_size:
             self.stats.dropped += len(pending)
         else:
-            now = time.time_ns()
+            now = now_ns()
             self._q.put([Item(topic, msg, now) for topic, msg in pending])
         if self.wake is not None and not self.wake.is_set():
             self.wake.set()

@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from drivers.clock import now_ns
 from hilnav.errors import CliError
 
 # The tour in the office plan (8.9 x 7.1 m; west room x < 4, doors at x = 4, y 1.5-2.5).
@@ -119,7 +120,7 @@ class Operator:
         from msgs import VelocityCommand
 
         self.bus.publish_to(
-            self.robot, "cmd_vel", VelocityCommand(time.time_ns(), v, w, source="operator")
+            self.robot, "cmd_vel", VelocityCommand(now_ns(), v, w, source="operator")
         )
 
     def drive(self, waypoints, speed: float, deadline: float) -> int:

@@ -23,12 +23,12 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections import Counter
 from typing import Any
 
 import numpy as np
 
+from drivers.clock import now_ns
 from hilnav.analysis.containment import box_contains
 from hilnav.bus import ZenohSettings
 from hilnav.fleet.robot import SimRobot
@@ -123,7 +123,7 @@ class MrclamRobot(SimRobot):
         assert self.devices is not None
         self.feed_step(s)
         # what was recorded up to the step's instant is in: the CP's ticks up to it go out
-        now = time.time_ns()
+        now = now_ns()
         self.rt.guard("services", self.pipe.advance, self.devices.step_ns(s), now)
         topic = log_topic(self.name, "truth")
         for gt in self.devices.truth_messages(s):

@@ -21,10 +21,10 @@ was due) is kept, and each peer admitted or dropped, with the wall time of its c
 from __future__ import annotations
 
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
+from drivers.clock import now_ns
 from hilnav.bus import ZenohSettings
 from hilnav.bus_session import BusSession
 from hilnav.config import RobotConfig
@@ -136,7 +136,7 @@ class SimRobot:
         self._stamp_ns = stamp = int(msgs[0][1].stamp_ns) if msgs else self._stamp_ns
         t = self.devices.truth(s)
         truth = GroundTruth(stamp, self.name, Pose2D(t.x, t.y, wrap_angle(t.theta)))
-        self.rt.log_msg(log_topic(self.name, "truth"), truth, time.time_ns())
+        self.rt.log_msg(log_topic(self.name, "truth"), truth, now_ns())
         if self.reference is not None:
             self.reference.feed(msgs)
 
