@@ -25,7 +25,8 @@ messages come from the drivers (the pipeline); four rules:
    fixed hold, and not at all when the gyro is ahead of it.
 3. *Of a burst of odometry with one stamp only the last is kept*: odometry poses are
    cumulative, so it covers the whole burst.
-4. *Odometry older than the held or the last released message is dropped.*
+4. *Odometry older than the held or the last released message is dropped*, unless it is
+   more than a second older (msgs.stamps: a clock set back), which is followed.
 
 A gyro sample that arrives after the odometry it precedes was taken (its stamp at or
 before that odometry's: stamp jitter beyond the rule-2 margin, or readers racing) is
@@ -39,6 +40,7 @@ message stamps (integer ns); the output depends only on the input sequence.
 from __future__ import annotations
 
 from msgs import GyroSample, RobotOdometry
+from msgs.stamps import set_back
 
 
 class ArrivalOrder:
@@ -80,14 +82,18 @@ class ArrivalOrder:
         h = self.held
         out: list[RobotOdometry] = []
         if h is not None:
-            if o.stamp_ns < h.stamp_ns:
+            if set_back(o.stamp_ns, h.stamp_ns):  # a clock set back: follow it
+                self.held = None
+                self.dropped += 1
+            elif o.stamp_ns < h.stamp_ns:
                 self.dropped += 1  # rule 4
                 return out
-            if o.stamp_ns == h.stamp_ns:
+            elif o.stamp_ns == h.stamp_ns:
                 self.dropped += 1  # rule 3: the earlier one of a burst, replaced by this one
                 self.held = o
                 return out
-            self._take(self._release(), out)
+            else:
+                self._take(self._release(), out)
         last = self._gyro_read_ns
         wait = (
             last is not None
@@ -110,7 +116,8 @@ class ArrivalOrder:
         h, self.held = self.held, None
         if h is None:
             return None
-        if self._released_ns is not None and h.stamp_ns <= self._released_ns:
+        done = self._released_ns
+        if done is not None and h.stamp_ns <= done and not set_back(h.stamp_ns, done):
             self.dropped += 1  # rule 4
             return None
         self._released_ns = h.stamp_ns

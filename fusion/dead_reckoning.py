@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from msgs import Pose2D, PoseEstimate, VelocityOdometry, wrap_angle
+from msgs.stamps import set_back
 from numerics.motion import motion
 
 
@@ -48,6 +49,10 @@ class VelocityDeadReckoning:
         prev = self._last
         if prev is not None:
             dt_ns = msg.stamp_ns - prev.stamp_ns
+            if set_back(msg.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
+                self.skipped["clock_set_back"] = self.skipped.get("clock_set_back", 0) + 1
+                self._last = msg
+                return None
             if dt_ns < 0 or (dt_ns == 0 and msg == prev):
                 why = "out_of_order" if dt_ns < 0 else "duplicate"
                 self.skipped[why] = self.skipped.get(why, 0) + 1

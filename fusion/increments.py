@@ -8,12 +8,14 @@ Both fusion filters work on what happened *between* two odometry messages:
   chord points along theta + dtheta / 2, which is the midpoint motion model of
   fusion.models). The first message only sets the baseline; a message not newer than the
   last one is counted (``out_of_order``) and skipped; a step faster than physically
-  possible (odometry reset, bad packet) is counted (``jumps``) and re-baselined.
+  possible (odometry reset, bad packet), or a stamp more than a second older than the
+  last (a clock set back, msgs.stamps), is counted (``jumps``) and re-baselined.
 - :class:`GyroDeltas` accumulates the gyro's angle change from ``GyroSample.angle_rad``
   differences (wrapped, so an unwrapped or a wrapped angle both work) until the filter
   takes it at the next odometry step, so gyro and odometry may run at any rates. A
   difference implying more than ``max_rate_radps`` (the device re-zeroed its angle, a
-  reconnect) is counted (``discontinuities``) and replaced by rate x dt. Samples sharing
+  reconnect) is counted (``discontinuities``) and replaced by rate x dt; a stamp more than
+  a second older than the last (a clock set back) is counted there too and re-baselined. Samples sharing
   one stamp (packets read together after a stall, all stamped with the read time) are
   kept, each change checked against ``max_rate_radps`` x max(dt, ``min_period_s``):
   the device's angle is cumulative, so their rotation is real even if their stamps are not.
@@ -27,6 +29,7 @@ import math
 from dataclasses import dataclass
 
 from msgs import GyroSample, RobotOdometry, wrap_angle
+from msgs.stamps import set_back
 
 NS = 1e-9
 
@@ -76,6 +79,11 @@ class OdometryDeltas:
             self.baselined = True
             return None
         if msg.stamp_ns <= prev.stamp_ns:
+            if set_back(msg.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
+                self.jumps += 1
+                self.last = msg
+                self.baselined = True
+                return None
             self.out_of_order += 1
             return None
         self.last = msg
@@ -133,6 +141,10 @@ class GyroDeltas:
             self.last = msg
             return
         if msg.stamp_ns < prev.stamp_ns:
+            if set_back(msg.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
+                self.discontinuities += 1
+                self.last = msg
+                return
             self.out_of_order += 1
             return
         self.last = msg

@@ -55,6 +55,7 @@ from fusion.ekf_update import UpdateResult
 from fusion.pose_ekf_core import PoseEkfCore
 from fusion.pose_ekf_params import DEG, PoseEkfParams, gps_fix_measurement
 from msgs import GpsFix, Pose2D, PoseEstimate
+from msgs.stamps import set_back
 
 NS = 1e-9
 __all__ = ["DEG", "PoseEkf", "PoseEkfParams", "UpdateResult"]
@@ -126,9 +127,14 @@ class PoseEkf(AlignedInput, PoseEkfCore):
             return None
         p = self.params
         lag_s = (self.stamp_ns - msg.stamp_ns) * NS
-        if lag_s > p.gps_max_lag_s or (
-            self._last_gps_ns is not None and msg.stamp_ns <= self._last_gps_ns
+        last = self._last_gps_ns
+        if (
+            last is not None
+            and set_back(msg.stamp_ns, last)
+            and not set_back(msg.stamp_ns, self.stamp_ns)
         ):
+            last = None  # the clock was set back, and the odometry has followed it
+        if lag_s > p.gps_max_lag_s or (last is not None and msg.stamp_ns <= last):
             self._count.out_of_order_gps += 1
             return None
         self._last_gps_ns = msg.stamp_ns

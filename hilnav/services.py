@@ -56,6 +56,7 @@ from msgs import (
     RobotOdometry,
     wrap_angle,
 )
+from msgs.stamps import set_back
 
 Outputs = list[tuple[str, Any]]
 
@@ -188,8 +189,9 @@ class LocalizationAdapter:
             return []
         # The box is made only when it is published (the CP state is the same either way).
         stamp = self.cp.stamp_ns
-        if self._last_ns is not None and stamp - self._last_ns < self.period_ns:
-            return []
+        last = self._last_ns
+        if last is not None and stamp - last < self.period_ns and not set_back(stamp, last):
+            return []  # within the period (a clock set back starts it again: msgs.stamps)
         self._last_ns = stamp
         return [("pose_box", self.cp.box())]
 
@@ -312,7 +314,8 @@ class MappingAdapter:
                     self._model.integrate(self._grid, beams_from_scan(h, sigma, msg, self.mounts))
                 else:
                     self.refused += 1
-        if self._last_map_ns is None or msg.stamp_ns - self._last_map_ns >= self.period_ns:
+        last = self._last_map_ns
+        if last is None or msg.stamp_ns - last >= self.period_ns or set_back(msg.stamp_ns, last):
             self._last_map_ns = msg.stamp_ns
             out.append(("map", self.map_msg(msg.stamp_ns)))
         return out

@@ -64,6 +64,7 @@ from msgs import (
     RelativeMeasurement,
     RobotOdometry,
 )
+from msgs.stamps import set_back
 
 _TWO_PI_HI = math.nextafter(TWO_PI, math.inf)
 
@@ -161,6 +162,9 @@ class CPLocalizer(SlidingWindowCP):
         if prev is None:
             self._ensure_started(odom.stamp_ns)
             return True
+        if set_back(odom.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
+            self._skip("odometry_clock_set_back")
+            return False
         if odom.stamp_ns <= prev.stamp_ns:
             self._skip("odometry_out_of_order")
             self._last_odom = prev
