@@ -42,6 +42,7 @@ from msgs import (
     RobotOdometry,
     wrap_angle,
 )
+from msgs.stamps import set_back
 from numerics import ekf
 from numerics.angles import wrap
 
@@ -149,6 +150,9 @@ class EkfLocalizer(MessageIntake):
         if prev is None:
             self.stamp_ns = odom.stamp_ns
             return self.estimate()
+        if set_back(odom.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
+            self._skip("odometry_clock_set_back")
+            return None
         if odom.stamp_ns <= prev.stamp_ns:
             self._last_odom = prev
             self._skip("odometry_out_of_order")

@@ -96,3 +96,20 @@ def test_a_log_whose_clock_was_set_back_replays_as_without_it(back_s: int) -> No
     assert math.hypot(p0.x - p1.x, p0.y - p1.y) < 0.06
     after = {t for k, (t, _) in outs["stepped"] if k > k0 + 500}
     assert {"pose_box", "map", "heading", "pose"} <= after
+
+
+def test_the_localizers_odometry_follows_a_clock_set_back() -> None:
+    """The EKF and CP localizers (localization.ekf, localization.cp): odometry stamped
+    more than a second before the last is a new baseline, counted; later steps move."""
+    from localization.cp import CPConfig, CPLocalizer
+    from localization.ekf import EkfConfig, EkfLocalizer
+
+    ekf = EkfLocalizer(EkfConfig())
+    cp = CPLocalizer(CPConfig())
+    for t, x in ((10_000, 0.0), (10_100, 0.02), (9_950, 0.03), (5_000, 0.04), (5_100, 0.06)):
+        ekf.feed(odo(t, x))
+        cp.take_odometry(odo(t, x))
+    assert ekf.skipped["odometry_out_of_order"] == 1
+    assert ekf.skipped["odometry_clock_set_back"] == 1
+    assert ekf.estimate().pose.x == pytest.approx(0.04, abs=1e-9)  # 0.02 + 0.02: 2 steps
+    assert cp.skipped["odometry_clock_set_back"] == 1 and cp.stamp_ns == 5_100 * MS
