@@ -27,7 +27,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from drivers.clock import now_ns
 from hilnav.errors import CliError
 
 # The tour in the office plan (8.9 x 7.1 m; west room x < 4, doors at x = 4, y 1.5-2.5).
@@ -117,6 +116,7 @@ class Operator:
             return self.truth if self.truth is not None else self.pose
 
     def send(self, v: float, w: float) -> None:
+        from drivers.clock import now_ns
         from msgs import VelocityCommand
 
         self.bus.publish_to(
