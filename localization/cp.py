@@ -164,6 +164,8 @@ class CPLocalizer(SlidingWindowCP):
             return True
         if set_back(odom.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
             self._skip("odometry_clock_set_back")
+            if self._gyro_t0 is not None:  # the gyro's time since its start goes on
+                self._gyro_t0 += odom.stamp_ns - prev.stamp_ns
             return False
         if odom.stamp_ns <= prev.stamp_ns:
             self._skip("odometry_out_of_order")

@@ -94,6 +94,12 @@ def test_a_log_whose_clock_was_set_back_replays_as_without_it(back_s: int) -> No
     # the one odometry step across the set back is not taken (its interval is unknown):
     # 4 cm at 0.4 m/s
     assert math.hypot(p0.x - p1.x, p0.y - p1.y) < 0.06
+    # CP's box stays as wide as without the step (its gyro bound counts the time since
+    # the gyro's first sample, which goes on across the step)
+    b0, b1 = last["clean"]["pose_box"], last["stepped"]["pose_box"]
+    area = [(b.x.hi - b.x.lo) * (b.y.hi - b.y.lo) for b in (b0, b1)]
+    assert area[1] == pytest.approx(area[0], rel=0.1)
+    assert b1.theta.hi - b1.theta.lo == pytest.approx(b0.theta.hi - b0.theta.lo, rel=0.1)
     after = {t for k, (t, _) in outs["stepped"] if k > k0 + 500}
     assert {"pose_box", "map", "heading", "pose"} <= after
 
