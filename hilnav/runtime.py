@@ -46,7 +46,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from drivers.clock import now_ns
+from drivers.clock import CLOCK, now_ns
 from hilnav.bus import Bus, ZenohSettings, zenoh_problem
 from hilnav.bus_session import BusSession
 from hilnav.config import RobotConfig
@@ -407,5 +407,7 @@ class RobotRuntime(RuntimeQueue):
             queue_dropped=self.stats.dropped + (worker.dropped if worker else 0),
             faults=dict(self.stats.faults),
             last_fault=self.errors[-1] if self.errors else "",
+            clock_back_steps=CLOCK.back_steps,
+            clock_forward_steps=CLOCK.forward_steps,
             **more,
         )

@@ -40,7 +40,8 @@ class DaemonStatus:
     messages the service loop handled, and dropped because it fell behind; faults: the
     exceptions caught per place (services, log, bus, mapping, diagnostics, watchdog) and
     the last one; cmd_*: velocity commands obeyed, refused, and the stops made by the
-    command timeout and by a stalled service loop.
+    command timeout and by a stalled service loop; clock_*: the steps of the host's wall
+    clock the stamps did not follow back, and followed forward (drivers.clock).
     """
 
     stamp_ns: int
@@ -58,3 +59,5 @@ class DaemonStatus:
     cmd_rejected: int = 0
     cmd_timeouts: int = 0
     cmd_stalls: int = 0
+    clock_back_steps: int = 0
+    clock_forward_steps: int = 0

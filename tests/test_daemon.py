@@ -148,6 +148,7 @@ def test_diagnostics_per_device_at_about_one_hz(running):
     assert devices == {"arcos", "ir", "gyro", "gps"}
     st = seen.get("status")[-1]
     assert st.robot == "r1" and st.queue_processed > 100 and st.queue_dropped == 0
+    assert st.clock_back_steps == 0  # carried on the wire (the host clock did not step)
     gyro = [m for m in diags if m.device == "gyro"][-1]
     assert gyro.connected and gyro.frames_ok > 100 and 60 < gyro.rate_hz < 140
     ir = [m for m in diags if m.device == "ir"][-1]
