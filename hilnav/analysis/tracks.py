@@ -113,7 +113,7 @@ def load(path: str | Path, stats: ReadStats | None = None) -> dict[str, RobotLog
     st = stats if stats is not None else ReadStats()
     types = message_types()
     robots: dict[str, RobotLog] = {}
-    for r in iter_raw(path, stats=st):
+    for r in iter_raw(path, stats=st, as_written=True):
         robot, kind = split_log_topic(r.topic)
         if kind.startswith("raw/") or kind.startswith("fox/") or not robot:
             continue

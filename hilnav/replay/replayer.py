@@ -131,7 +131,7 @@ def replay(
     bar = tqdm(total=total, unit="msg", desc="replay", disable=not progress, mininterval=0.25)
     with LogWriter(dst, compression=compression, metadata=out_meta, wall_clock=False) as w:
         router = _Router(robot, pipe, decoders, w, rep, stats)
-        for r in iter_raw(src, stats=stats):
+        for r in iter_raw(src, stats=stats, as_written=True):
             rep.records += 1
             bar.update(1)
             router.record(r)
