@@ -26,7 +26,8 @@ messages come from the drivers (the pipeline); four rules:
 3. *Of a burst of odometry with one stamp only the last is kept*: odometry poses are
    cumulative, so it covers the whole burst.
 4. *Odometry older than the held or the last released message is dropped*, unless it is
-   more than a second older (msgs.stamps: a clock set back), which is followed.
+   more than a second older and the next one continues from it (msgs.stamps: a clock
+   set back), which is followed after the held one is released.
 
 A gyro sample that arrives after the odometry it precedes was taken (its stamp at or
 before that odometry's: stamp jitter beyond the rule-2 margin, or readers racing) is
@@ -40,7 +41,7 @@ message stamps (integer ns); the output depends only on the input sequence.
 from __future__ import annotations
 
 from msgs import GyroSample, RobotOdometry
-from msgs.stamps import set_back
+from msgs.stamps import SetBackGate
 
 
 class ArrivalOrder:
@@ -64,6 +65,7 @@ class ArrivalOrder:
         self._gyro_ns: int | None = None  # the newest gyro stamp, restamped
         self._gyro_read_ns: int | None = None  # the newest gyro stamp as read
         self._released_ns: int | None = None
+        self._set_back = SetBackGate()
 
     def gyro(self, g: GyroSample) -> tuple[RobotOdometry | None, GyroSample]:
         """The odometry to take before this sample (rule 2), and the sample restamped (rule 1)."""
@@ -81,18 +83,20 @@ class ArrivalOrder:
         is silent), then this one unless it is held for its gyro sample."""
         h = self.held
         out: list[RobotOdometry] = []
-        if h is not None:
-            if set_back(o.stamp_ns, h.stamp_ns):  # a clock set back: follow it
-                self.held = None
-                self.dropped += 1
-            elif o.stamp_ns < h.stamp_ns:
-                self.dropped += 1  # rule 4
+        last = h.stamp_ns if h is not None else self._released_ns
+        if last is not None and o.stamp_ns < last:
+            if self._set_back.older(o.stamp_ns, last) != "confirmed":
+                self.dropped += 1  # rule 4 (one more than a second back waits in the gate)
                 return out
-            elif o.stamp_ns == h.stamp_ns:
-                self.dropped += 1  # rule 3: the earlier one of a burst, replaced by this one
-                self.held = o
-                return out
-            else:
+            self._take(self._release(), out)  # the clock was set back: the old line first
+            self._released_ns = None
+        else:
+            self._set_back.newer()
+            if h is not None:
+                if o.stamp_ns == h.stamp_ns:
+                    self.dropped += 1  # rule 3: the earlier one of a burst, replaced by this
+                    self.held = o
+                    return out
                 self._take(self._release(), out)
         last = self._gyro_read_ns
         wait = (
@@ -116,8 +120,7 @@ class ArrivalOrder:
         h, self.held = self.held, None
         if h is None:
             return None
-        done = self._released_ns
-        if done is not None and h.stamp_ns <= done and not set_back(h.stamp_ns, done):
+        if self._released_ns is not None and h.stamp_ns <= self._released_ns:
             self.dropped += 1  # rule 4
             return None
         self._released_ns = h.stamp_ns

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from msgs import Pose2D, PoseEstimate, VelocityOdometry, wrap_angle
-from msgs.stamps import set_back
+from msgs.stamps import SetBackGate
 from numerics.motion import motion
 
 
@@ -42,6 +42,7 @@ class VelocityDeadReckoning:
         self.long_steps = 0
         self.skipped: dict[str, int] = {}
         self._last: VelocityOdometry | None = None
+        self._set_back = SetBackGate()
 
     def feed(self, msg: VelocityOdometry) -> PoseEstimate | None:
         """The pose at ``msg``'s stamp (the previous message's velocities held until
@@ -49,14 +50,15 @@ class VelocityDeadReckoning:
         prev = self._last
         if prev is not None:
             dt_ns = msg.stamp_ns - prev.stamp_ns
-            if set_back(msg.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
+            if dt_ns < 0 and self._set_back.older(msg.stamp_ns, prev.stamp_ns) == "confirmed":
                 self.skipped["clock_set_back"] = self.skipped.get("clock_set_back", 0) + 1
-                self._last = msg
+                self._last = msg  # a new baseline
                 return None
             if dt_ns < 0 or (dt_ns == 0 and msg == prev):
                 why = "out_of_order" if dt_ns < 0 else "duplicate"
                 self.skipped[why] = self.skipped.get(why, 0) + 1
                 return None
+            self._set_back.newer()
             if dt_ns > self.long_step_ns:
                 self.long_steps += 1
             dt = dt_ns * 1e-9

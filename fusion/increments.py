@@ -9,13 +9,15 @@ Both fusion filters work on what happened *between* two odometry messages:
   fusion.models). The first message only sets the baseline; a message not newer than the
   last one is counted (``out_of_order``) and skipped; a step faster than physically
   possible (odometry reset, bad packet), or a stamp more than a second older than the
-  last (a clock set back, msgs.stamps), is counted (``jumps``) and re-baselined.
+  last confirmed by the next (a clock set back, msgs.stamps), is counted (``jumps``) and
+  re-baselined.
 - :class:`GyroDeltas` accumulates the gyro's angle change from ``GyroSample.angle_rad``
   differences (wrapped, so an unwrapped or a wrapped angle both work) until the filter
   takes it at the next odometry step, so gyro and odometry may run at any rates. A
   difference implying more than ``max_rate_radps`` (the device re-zeroed its angle, a
   reconnect) is counted (``discontinuities``) and replaced by rate x dt; a stamp more than
-  a second older than the last (a clock set back) is counted there too and re-baselined. Samples sharing
+  a second older than the last, confirmed by the next (a clock set back), is counted
+  there too and re-baselined. Samples sharing
   one stamp (packets read together after a stall, all stamped with the read time) are
   kept, each change checked against ``max_rate_radps`` x max(dt, ``min_period_s``):
   the device's angle is cumulative, so their rotation is real even if their stamps are not.
@@ -29,7 +31,7 @@ import math
 from dataclasses import dataclass
 
 from msgs import GyroSample, RobotOdometry, wrap_angle
-from msgs.stamps import set_back
+from msgs.stamps import SetBackGate
 
 NS = 1e-9
 
@@ -64,6 +66,7 @@ class OdometryDeltas:
         self.messages = 0
         self.out_of_order = 0
         self.jumps = 0
+        self._gate = SetBackGate()
         self.baselined = False  # the last feed set a new baseline (first message or jump)
 
     def reset(self) -> None:
@@ -79,13 +82,14 @@ class OdometryDeltas:
             self.baselined = True
             return None
         if msg.stamp_ns <= prev.stamp_ns:
-            if set_back(msg.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
-                self.jumps += 1
+            if self._gate.older(msg.stamp_ns, prev.stamp_ns) == "confirmed":
+                self.jumps += 1  # the clock was set back: a new baseline
                 self.last = msg
                 self.baselined = True
                 return None
-            self.out_of_order += 1
+            self.out_of_order += 1  # late, or a first one more than a second back (held)
             return None
+        self._gate.newer()
         self.last = msg
         p0, p1 = prev.pose, msg.pose
         dth = wrap_angle(p1.theta - p0.theta)
@@ -122,6 +126,7 @@ class GyroDeltas:
         self.messages = 0
         self.out_of_order = 0
         self.discontinuities = 0
+        self._gate = SetBackGate()
         self._sum = 0.0
         self._covered = 0.0
         self._n = 0
@@ -141,12 +146,13 @@ class GyroDeltas:
             self.last = msg
             return
         if msg.stamp_ns < prev.stamp_ns:
-            if set_back(msg.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
-                self.discontinuities += 1
+            if self._gate.older(msg.stamp_ns, prev.stamp_ns) == "confirmed":
+                self.discontinuities += 1  # the clock was set back: a new baseline
                 self.last = msg
                 return
-            self.out_of_order += 1
+            self.out_of_order += 1  # late, or a first one more than a second back (held)
             return
+        self._gate.newer()
         self.last = msg
         dt = (msg.stamp_ns - prev.stamp_ns) * NS
         d = wrap_angle(msg.angle_rad - prev.angle_rad)
@@ -163,6 +169,12 @@ class GyroDeltas:
         out = None if self._n == 0 else GyroDelta(self._sum, self._covered, self._n)
         self._sum, self._covered, self._n = 0.0, 0.0, 0
         return out
+
+
+MAX_REST_INTERVAL_S = 2.0
+"""The longest gyro interval at rest that counts for the bias: a longer one is a gap in
+the samples or stamps that stepped forward (the host's clock set forward at boot, by NTP),
+over which the angle's change divided by the stamps' interval is not the rate."""
 
 
 class RestBias:
@@ -188,6 +200,8 @@ class RestBias:
         self._streak_s += step.dt_s
         if gyro is None or gyro.covered_s <= 0.0 or self._streak_s < self.min_rest_s:
             return
+        if gyro.covered_s > MAX_REST_INTERVAL_S:
+            return  # a gap, or stamps that stepped forward: the mean rate over it is not the bias
         self.rest_s = min(self.rest_s + gyro.covered_s, self.window_s)
-        w = gyro.covered_s / self.rest_s
+        w = min(gyro.covered_s / self.rest_s, 1.0)
         self.bias_radps += w * (gyro.angle_rad / gyro.covered_s - self.bias_radps)

@@ -101,8 +101,8 @@ class PoseEkf(AlignedInput, PoseEkfCore):
         if a is None:
             return None
         step = a.step
-        if step is None:  # first message or re-baseline after a jump
-            self.stamp_ns = max(self.stamp_ns, a.stamp_ns)
+        if step is None:  # first message, or re-baseline after a jump or a clock set back
+            self.stamp_ns = a.stamp_ns
             return self.estimate()
         self.stamp_ns = step.t1_ns
         self._speed_mps = abs(step.ds_m) / step.dt_s if step.dt_s > 0 else 0.0

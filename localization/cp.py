@@ -64,7 +64,7 @@ from msgs import (
     RelativeMeasurement,
     RobotOdometry,
 )
-from msgs.stamps import set_back
+from msgs.stamps import SetBackGate
 
 _TWO_PI_HI = math.nextafter(TWO_PI, math.inf)
 
@@ -75,6 +75,12 @@ def _iv(i: Interval) -> IV:
 
 def _interval(lo: float, hi: float) -> Interval:
     return Interval(float(lo), float(hi))
+
+
+GYRO_GAP_S = 10.0
+"""The most one interval between gyro samples adds to the gyro's running time, which its
+drift bound grows with: a longer gap is stamps that stepped forward (the host's clock set
+forward by NTP, msgs.stamps), not hours of drift; a set back adds nothing."""
 
 
 class CPLocalizer(SlidingWindowCP):
@@ -96,7 +102,9 @@ class CPLocalizer(SlidingWindowCP):
         self.robot = robot
         self._initial = initial
         self._last_odom: RobotOdometry | None = None
-        self._gyro_t0: int | None = None
+        self._gyro_last_ns: int | None = None
+        self._gyro_run_s = 0.0  # the time the gyro has run since its first sample
+        self._set_back = SetBackGate()
         self.peers: dict[str, PoseBox] = {}
 
     def _pose_box(self, stamp_ns: int, x: IV, y: IV, th: IV) -> PoseBox:
@@ -162,15 +170,14 @@ class CPLocalizer(SlidingWindowCP):
         if prev is None:
             self._ensure_started(odom.stamp_ns)
             return True
-        if set_back(odom.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
-            self._skip("odometry_clock_set_back")
-            if self._gyro_t0 is not None:  # the gyro's time since its start goes on
-                self._gyro_t0 += odom.stamp_ns - prev.stamp_ns
-            return False
         if odom.stamp_ns <= prev.stamp_ns:
-            self._skip("odometry_out_of_order")
+            if self._set_back.older(odom.stamp_ns, prev.stamp_ns) == "confirmed":
+                self._skip("odometry_clock_set_back")  # a new baseline
+                return False
+            self._skip("odometry_out_of_order")  # late, or held: one more than a second back
             self._last_odom = prev
             return False
+        self._set_back.newer()
         dsr, dsl = wheels_from_poses(
             prev.pose, odom.pose, self.cfg.wheelbase_m, self.cfg.kappa, self.cfg.chord
         )
@@ -185,10 +192,11 @@ class CPLocalizer(SlidingWindowCP):
         if not self.started or not math.isfinite(angle_rad):
             self._skip("gyro_before_start" if self.started is False else "gyro_invalid")
             return False
-        if self._gyro_t0 is None:
-            self._gyro_t0 = stamp_ns
+        last, self._gyro_last_ns = self._gyro_last_ns, stamp_ns
+        if last is not None:  # the gyro's running time: a step of the stamps is not time
+            self._gyro_run_s += min(max((stamp_ns - last) * 1e-9, 0.0), GYRO_GAP_S)
         c = self.cfg
-        bound = c.gyro_bound_rad + c.gyro_drift_bound_radps * abs(stamp_ns - self._gyro_t0) * 1e-9
+        bound = c.gyro_bound_rad + c.gyro_drift_bound_radps * self._gyro_run_s
         self.heading_f(stamp_ns, *isc.around(angle_rad + c.gyro_offset_rad, bound))
         return True
 

@@ -42,7 +42,7 @@ from msgs import (
     RobotOdometry,
     wrap_angle,
 )
-from msgs.stamps import set_back
+from msgs.stamps import SetBackGate
 from numerics import ekf
 from numerics.angles import wrap
 
@@ -89,6 +89,7 @@ class EkfLocalizer(MessageIntake):
             self.P = np.array(initial.covariance, dtype=float).reshape(3, 3)
         self.stamp_ns = 0 if initial is None else initial.stamp_ns
         self._last_odom: RobotOdometry | None = None
+        self._set_back = SetBackGate()
         self.skipped: dict[str, int] = {}
 
     # ---------------------------------------------------------------- array level
@@ -150,13 +151,14 @@ class EkfLocalizer(MessageIntake):
         if prev is None:
             self.stamp_ns = odom.stamp_ns
             return self.estimate()
-        if set_back(odom.stamp_ns, prev.stamp_ns):  # a clock set back: a new baseline
-            self._skip("odometry_clock_set_back")
-            return None
         if odom.stamp_ns <= prev.stamp_ns:
+            if self._set_back.older(odom.stamp_ns, prev.stamp_ns) == "confirmed":
+                self._skip("odometry_clock_set_back")  # a new baseline
+                return None
             self._last_odom = prev
-            self._skip("odometry_out_of_order")
+            self._skip("odometry_out_of_order")  # late, or held: one more than a second back
             return None
+        self._set_back.newer()
         c = self.cfg
         dsr, dsl = wheels_from_poses(prev.pose, odom.pose, c.wheelbase_m, c.kappa, c.chord)
         if not (math.isfinite(dsr) and math.isfinite(dsl)):

@@ -59,6 +59,7 @@ def test_a_log_whose_time_goes_back_is_read_and_replayed_in_the_order_written(
     a, b = outs["clean"], outs["back"]
     assert b.stamp_ns == a.stamp_ns - 8 * S  # it went on to the end
     assert abs(math.remainder(a.theta_rad - b.theta_rad, 2 * math.pi)) < math.radians(1.0)
-    assert math.hypot(a.pose.x - b.pose.x, a.pose.y - b.pose.y) < 0.06  # one step lost
+    # the odometry steps until the set back is confirmed are lost: 12 cm at 0.4 m/s
+    assert math.hypot(a.pose.x - b.pose.x, a.pose.y - b.pose.y) < 0.15
     assert digest(analyze(back))[0].startswith("  warning: the log's time goes back")
     assert not any("warning" in line for line in digest(analyze(clean)))

@@ -36,25 +36,30 @@ def test_increments_start_again_after_a_clock_set_back() -> None:
     d.feed(odo(10_000, 0.0))
     assert d.feed(odo(10_100, 0.02)).ds_m == pytest.approx(0.02)
     assert d.feed(odo(10_050, 0.03)) is None and d.out_of_order == 1  # late: skipped
-    assert d.feed(odo(5_000, 0.04)) is None and d.jumps == 1 and d.baselined  # set back
-    step = d.feed(odo(5_100, 0.06))
+    assert d.feed(odo(5_000, 0.04)) is None and d.jumps == 0  # set back: held
+    assert d.feed(odo(10_200, 0.04)) is not None  # the old line goes on: it was a stray
+    assert d.feed(odo(5_100, 0.05)) is None and d.jumps == 0  # held again
+    assert d.feed(odo(5_200, 0.06)) is None and d.jumps == 1 and d.baselined  # confirmed
+    step = d.feed(odo(5_300, 0.08))
     assert step is not None and step.ds_m == pytest.approx(0.02) and step.dt_s == pytest.approx(0.1)
     g = GyroDeltas()
     g.feed(GyroSample(10_000 * MS, 0.1, 1.0))
     g.feed(GyroSample(9_990 * MS, 0.1, 1.0))  # late: skipped
-    g.feed(GyroSample(5_000 * MS, 0.1, 2.0))  # set back: a new baseline, no change
-    g.feed(GyroSample(5_010 * MS, 0.1, 2.001))
-    assert (g.out_of_order, g.discontinuities) == (1, 1)
+    g.feed(GyroSample(5_000 * MS, 0.1, 2.0))  # set back: held
+    g.feed(GyroSample(5_010 * MS, 0.1, 2.001))  # confirmed: a new baseline, no change
+    g.feed(GyroSample(5_020 * MS, 0.1, 2.003))
+    assert (g.out_of_order, g.discontinuities) == (2, 1)
     delta = g.take()
-    assert delta.angle_rad == pytest.approx(0.001) and delta.covered_s == pytest.approx(0.01)
+    assert delta.angle_rad == pytest.approx(0.002) and delta.covered_s == pytest.approx(0.01)
 
 
 def test_arrival_order_follows_odometry_set_back() -> None:
     a = ArrivalOrder(100.0)
     assert [o.stamp_ns for o in a.odometry(odo(10_000, 0.0))] == [10_000 * MS]
     assert a.odometry(odo(9_900, 0.0)) == [] and a.dropped == 1  # late: dropped
-    assert [o.stamp_ns for o in a.odometry(odo(5_000, 0.0))] == [5_000 * MS]  # followed
-    assert [o.stamp_ns for o in a.odometry(odo(5_100, 0.0))] == [5_100 * MS]
+    assert a.odometry(odo(5_000, 0.0)) == [] and a.dropped == 2  # set back: held
+    assert [o.stamp_ns for o in a.odometry(odo(5_100, 0.0))] == [5_100 * MS]  # confirmed
+    assert [o.stamp_ns for o in a.odometry(odo(5_200, 0.0))] == [5_200 * MS]
 
 
 def test_gps_after_a_clock_set_back_is_used() -> None:
@@ -64,8 +69,8 @@ def test_gps_after_a_clock_set_back_is_used() -> None:
     ekf.feed(odo(10_000, 0.0))
     ekf.feed(odo(10_100, 0.02))
     assert ekf.feed(fix(10_100, 0.02)) is not None
-    ekf.feed(odo(5_000, 0.04))  # the clock set back: the odometry follows
-    ekf.feed(odo(5_100, 0.06))
+    ekf.feed(odo(5_000, 0.04))  # the clock set back: held
+    ekf.feed(odo(5_100, 0.06))  # confirmed: the odometry follows
     assert ekf.feed(fix(5_100, 0.06)) is not None  # and so does the GPS
     assert ekf.counters()["out_of_order_gps"] == 0
 
@@ -91,9 +96,9 @@ def test_a_log_whose_clock_was_set_back_replays_as_without_it(back_s: int) -> No
     assert abs(math.remainder(h0.theta_rad - h1.theta_rad, 2 * math.pi)) < math.radians(1.0)
     assert h1.stamp_ns == h0.stamp_ns - back_s * 10**9  # it went on to the end
     p0, p1 = last["clean"]["pose"].pose, last["stepped"]["pose"].pose
-    # the one odometry step across the set back is not taken (its interval is unknown):
-    # 4 cm at 0.4 m/s
-    assert math.hypot(p0.x - p1.x, p0.y - p1.y) < 0.06
+    # the odometry steps across the set back until it is confirmed are not taken: at
+    # most three steps, 12 cm at 0.4 m/s
+    assert math.hypot(p0.x - p1.x, p0.y - p1.y) < 0.15
     # CP's box stays as wide as without the step (its gyro bound counts the time since
     # the gyro's first sample, which goes on across the step)
     b0, b1 = last["clean"]["pose_box"], last["stepped"]["pose_box"]
@@ -112,10 +117,43 @@ def test_the_localizers_odometry_follows_a_clock_set_back() -> None:
 
     ekf = EkfLocalizer(EkfConfig())
     cp = CPLocalizer(CPConfig())
-    for t, x in ((10_000, 0.0), (10_100, 0.02), (9_950, 0.03), (5_000, 0.04), (5_100, 0.06)):
+    seq = ((10_000, 0.0), (10_100, 0.02), (9_950, 0.03), (5_000, 2.0), (10_200, 0.04),
+           (5_100, 0.05), (5_200, 0.06), (5_300, 0.08))  # fmt: skip
+    for t, x in seq:  # late; a stray 1 s back (2 m off); a set back (held, confirmed)
         ekf.feed(odo(t, x))
         cp.take_odometry(odo(t, x))
-    assert ekf.skipped["odometry_out_of_order"] == 1
+    assert ekf.skipped["odometry_out_of_order"] == 3  # late, stray, first of the step
     assert ekf.skipped["odometry_clock_set_back"] == 1
-    assert ekf.estimate().pose.x == pytest.approx(0.04, abs=1e-9)  # 0.02 + 0.02: 2 steps
-    assert cp.skipped["odometry_clock_set_back"] == 1 and cp.stamp_ns == 5_100 * MS
+    assert ekf.estimate().pose.x == pytest.approx(0.06, abs=1e-9)  # 3 steps of 2 cm
+    assert cp.skipped["odometry_clock_set_back"] == 1 and cp.stamp_ns == 5_300 * MS
+
+
+def test_a_clock_set_forward_at_rest_leaves_the_bias_and_cp_heading_alone() -> None:
+    """Stamps 1 h forward while the robot stands still (NTP setting a booting computer's
+    clock): the gyro bias learnt at rest is not re-learnt from the angle over the whole
+    hour (before: -0.17 rad/s, the heading 178 deg off), and CP's gyro drift bound grows
+    by at most GYRO_GAP_S (before: by the hour, a heading box of 187 deg)."""
+    from fusion.heading import HeadingFilter
+    from localization.cp import GYRO_GAP_S, CPConfig, CPLocalizer
+
+    f = HeadingFilter(arrival=ArrivalOrder(100.0))
+    angle, bias = 0.0, 0.002
+    for i in range(5000):  # 50 s at rest at 100 Hz, the stamps 1 h forward at 30 s
+        t = 10**12 + i * 10 * MS + (3600 * 10**9 if i >= 3000 else 0)
+        angle += bias * 0.01
+        f.feed(GyroSample(t, bias, angle))
+        if i % 10 == 5:
+            f.feed(RobotOdometry(t, Pose2D(), 0, 0, 0, 0, 12, False, True))
+    assert f._align.bias.bias_radps == pytest.approx(bias, rel=1e-3)
+    assert abs(f.estimate().theta_rad) < math.radians(0.5)
+    cfg = CPConfig()
+    widths = []
+    for jump in (0, 3600 * 10**9):
+        cp = CPLocalizer(cfg)
+        cp.take_odometry(odo(0, 0.0))
+        for k in range(100):  # 10 s of gyro at 10 Hz, 1 h forward half-way
+            t = k * 100 * MS + (jump if k >= 50 else 0)
+            cp.take_odometry(odo(t // MS, 0.0))
+            cp.take_gyro(t, 0.0)
+        widths.append(cp.box().theta.hi - cp.box().theta.lo)
+    assert widths[1] - widths[0] <= 2 * cfg.gyro_drift_bound_radps * GYRO_GAP_S + 1e-9
