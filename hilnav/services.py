@@ -308,7 +308,8 @@ class MappingAdapter:
                     out.append(("association", report))
             else:
                 h = self.heading.pose
-                box = self._model.scan_box(np.array([h.x, h.y, h.theta]), self.mounts)
+                pose = np.array([h.x, h.y, h.theta])
+                box = self._model.scan_box(pose, self.mounts, self._grid.resolution)
                 if self._grid.fits(*box):
                     sigma = math.sqrt(max(self.heading.variance_rad2, 0.0))
                     self._model.integrate(self._grid, beams_from_scan(h, sigma, msg, self.mounts))

@@ -194,7 +194,10 @@ class SampleAssociation:
                 f"IR scan has {len(kinds)} channels but {len(self.mounts)} mounts are "
                 "configured: give one (x, y, yaw) mount per channel"
             )
-        if not self.grid.fits(*self.model.scan_box(self._moved(p_in), self.mounts, FIT_MARGIN_M)):
+        box = self.model.scan_box(
+            self._moved(p_in), self.mounts, self.grid.resolution, FIT_MARGIN_M
+        )
+        if not self.grid.fits(*box):
             # Beyond the grid's max_cells: refused before anything changes (a record the
             # maps could not take would stop every later insertion). The next scan taken
             # moves the estimate over the whole span, as after the motion filter's gaps.

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -47,11 +47,17 @@ def attenuate(p: np.ndarray, alpha: np.ndarray, three_sigma: np.ndarray) -> np.n
     return np.where(p < 0.5, 0.5 - d, np.where(p > 0.5, 0.5 + d, p))
 
 
+def cone_extent(reach: Any, h: Any, res: float) -> Any:
+    """How far from its sensor a cone may update cells: its far corners, reach / cos(h)
+    away, and two cells."""
+    return reach / np.cos(h) + 2 * res
+
+
 def grow_for_cones(
     grid: OccupancyGrid, x: np.ndarray, y: np.ndarray, h: np.ndarray, reach: np.ndarray
 ) -> None:
-    """Grow the grid to hold every cone (its far corners lie reach / cos(h) away)."""
-    ext = reach / np.cos(h) + 2 * grid.resolution
+    """Grow the grid to hold every cone (:func:`cone_extent`)."""
+    ext = cone_extent(reach, h, grid.resolution)
     grid.ensure(
         float((x - ext).min()),
         float((y - ext).min()),

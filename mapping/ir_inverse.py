@@ -36,7 +36,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mapping.grid import OccupancyGrid
-from mapping.ir_cone import attenuate, cell_updates, cone_cells, grow_for_cones, lattice
+from mapping.ir_cone import (
+    attenuate,
+    cell_updates,
+    cone_cells,
+    cone_extent,
+    grow_for_cones,
+    lattice,
+)
 from mapping.ir_memo import UpdateMemo
 from msgs import IrScan, Pose2D
 
@@ -176,14 +183,18 @@ class IrInverseModel:
         return np.minimum(h, c.max_half_angle_rad, out=h)  # np.clip, without its wrappers
 
     def scan_box(
-        self, pose: np.ndarray, mounts: np.ndarray, margin_m: float = 0.0
+        self, pose: np.ndarray, mounts: np.ndarray, res: float, margin_m: float = 0.0
     ) -> tuple[float, float, float, float]:
-        """(xmin, ymin, xmax, ymax) that any beam of a scan taken at ``pose`` (x, y, theta)
-        from sensors at ``mounts`` (K, 3) may update, widened by ``margin_m``."""
+        """(xmin, ymin, xmax, ymax) that the grid (cell ``res``) grows to hold for any scan
+        taken at ``pose`` (x, y, theta) from sensors at ``mounts`` (K, 3): the widest cone
+        of :meth:`reach` and the largest half-angle (:func:`mapping.ir_cone.cone_extent`),
+        widened by ``margin_m``."""
         c, s = math.cos(float(pose[2])), math.sin(float(pose[2]))
         x = float(pose[0]) + c * mounts[:, 0] - s * mounts[:, 1]
         y = float(pose[1]) + s * mounts[:, 0] + c * mounts[:, 1]
-        r = self.config.max_range_m + self.config.hit_halfwidth_m + margin_m
+        cfg = self.config
+        reach = cfg.max_range_m + max(cfg.hit_halfwidth_m, 0.75 * res)
+        r = float(cone_extent(reach, cfg.max_half_angle_rad, res)) + margin_m
         return (float(x.min()) - r, float(y.min()) - r, float(x.max()) + r, float(y.max()) + r)
 
     def reach(self, beams: Beams, res: float) -> np.ndarray:

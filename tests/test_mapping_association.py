@@ -174,3 +174,24 @@ def test_a_graph_map_the_grid_cannot_hold_keeps_the_associations_map() -> None:
     assert da.finish() is da.grid
     assert da.graph_outcome.startswith("kept the association's map (the graph's map: grid")
     np.testing.assert_array_equal(da.grid.logodds, before)
+
+
+def test_scan_box_holds_every_cone_a_scan_may_draw() -> None:
+    """Whenever the grid says it can hold a scan's box (IrInverseModel.scan_box), the
+    widest scan there (every beam clear to the maximum range, the widest cone) goes in
+    without raising; poses swept up to and past the limit."""
+    model = IrInverseModel()
+    n = len(MOUNTS)
+    widest = IrScan(0, 0, 0, (math.nan,) * n, ("too_far",) * n, (0.0,) * n)
+    taken = refused = 0
+    for k in range(60):
+        g = OccupancyGrid(
+            GridConfig(origin_m=(-10.0, -10.0), size_m=(20.0, 20.0), max_cells=400 * 440)
+        )
+        pose = np.array([3.0 + 0.05 * k, 0.5, 0.3 * k])
+        if g.fits(*model.scan_box(pose, MOUNTS, g.resolution)):
+            model.integrate(g, beams_from_scan(Pose2D(*pose), 1.0, widest, MOUNTS))
+            taken += 1
+        else:
+            refused += 1
+    assert taken and refused
