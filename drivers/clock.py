@@ -17,8 +17,9 @@ stays fixed until the wall clock steps:
 - a step back: the stamps go on from where they were, ahead of the wall clock by the
   step, and they meet it again at the next step forward (counted in ``back_steps``).
 
-So the stamps never go back and never stall. Thread-safe: the offset is re-anchored
-under a lock, and reading it is atomic.
+So the stamps never go back and never stall. Thread-safe: a step is looked at under a
+lock with both clocks read again, and reading the offset is atomic. A step back is
+counted once, until the stamps are within a step of the wall clock again.
 """
 
 from __future__ import annotations
@@ -47,20 +48,23 @@ class SteadyWallClock:
         self.back_steps = 0
 
     def now_ns(self) -> int:
-        m = self._mono()
-        w = self._wall()
-        t = m + self._offset
-        if w - t > self.step_ns:
-            with self._lock:
-                if w - (m + self._offset) > self.step_ns:
-                    self._offset = w - m
-                    self.forward_steps += 1
-                    self._behind = False
-                t = m + self._offset
-        elif t - w > self.step_ns and not self._behind:
-            self._behind = True
-            self.back_steps += 1
-        return t
+        t = self._mono() + self._offset
+        if abs(self._wall() - t) <= self.step_ns:
+            self._behind = False  # with the wall clock again (within a step)
+            return t
+        with self._lock:  # read both again: another thread may have followed the step
+            w = self._wall()
+            m = self._mono()  # after the wall clock: a stall between them is no step forward
+            t = m + self._offset
+            if w - t > self.step_ns:
+                self._offset = w - m
+                self.forward_steps += 1
+                self._behind = False
+                t = w
+            elif t - w > self.step_ns and not self._behind:
+                self._behind = True
+                self.back_steps += 1
+            return t
 
 
 CLOCK = SteadyWallClock()

@@ -69,3 +69,20 @@ def test_a_wall_clock_set_back_leaves_the_heading_as_it_was() -> None:
     head_a = [m for t, m in out_a if t == "heading"]
     head_b = [m for t, m in out_b if t == "heading"]
     assert head_a and head_a == head_b
+
+
+def test_a_step_back_is_counted_once_until_the_clocks_meet_again() -> None:
+    c = Clocks()
+    clock = SteadyWallClock(c.wall, c.mono)
+    c.at, c.step = 1 * S, -5 * S
+    for k in range(10, 30):  # 1 s to 3 s: behind all along, counted once
+        c.t = k * S // 10
+        clock.now_ns()
+    assert clock.back_steps == 1
+    c.step = 0  # the wall clock set right again: the stamps meet it, no step either way
+    c.t = 4 * S
+    clock.now_ns()
+    c.step = -5 * S  # set back again: a second step
+    c.t = 5 * S
+    clock.now_ns()
+    assert (clock.back_steps, clock.forward_steps) == (2, 0)
