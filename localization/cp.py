@@ -103,7 +103,7 @@ class CPLocalizer(SlidingWindowCP):
         self._initial = initial
         self._last_odom: RobotOdometry | None = None
         self._gyro_last_ns: int | None = None
-        self._gyro_run_s = 0.0  # the time the gyro has run since its first sample
+        self._gyro_run_ns = 0  # the time the gyro has run since its first sample
         self._set_back = SetBackGate()
         self.peers: dict[str, PoseBox] = {}
 
@@ -194,9 +194,9 @@ class CPLocalizer(SlidingWindowCP):
             return False
         last, self._gyro_last_ns = self._gyro_last_ns, stamp_ns
         if last is not None:  # the gyro's running time: a step of the stamps is not time
-            self._gyro_run_s += min(max((stamp_ns - last) * 1e-9, 0.0), GYRO_GAP_S)
+            self._gyro_run_ns += min(max(stamp_ns - last, 0), int(GYRO_GAP_S * 1e9))
         c = self.cfg
-        bound = c.gyro_bound_rad + c.gyro_drift_bound_radps * self._gyro_run_s
+        bound = c.gyro_bound_rad + c.gyro_drift_bound_radps * self._gyro_run_ns * 1e-9
         self.heading_f(stamp_ns, *isc.around(angle_rad + c.gyro_offset_rad, bound))
         return True
 

@@ -170,7 +170,7 @@ def summary_json(analysis: Analysis) -> JsonDict:
 def digest(analysis: Analysis) -> list[str]:
     """A few figures per robot, one line each: path errors and drift, map, CP boxes."""
     lines = []
-    if analysis.read.file_order:
+    if analysis.read.set_backs:
         lines.append(
             "  warning: the log's time goes back (its clock was set back while it was "
             "recorded): read in the order written; figures matched by stamp across the "

@@ -47,7 +47,7 @@ from mcap.summary import Summary
 import msgs
 from hilnav.log.foxglove_schemas import SCHEMAS
 from hilnav.log.indexed import iter_indexed
-from msgs.stamps import set_back
+from hilnav.log.written_order import in_written_order
 
 MAGIC = b"\x89MCAP0\r\n"
 _HEAD = struct.Struct("<BQ")
@@ -73,7 +73,7 @@ class ReadStats:
     malformed: int = 0
     bad_chunks: int = 0
     truncated: bool = False
-    file_order: bool = False  # read in file order: its log time goes back (a clock set back)
+    set_backs: int = 0  # read as written: the times its log time went back (a clock set back)
     unknown_schemas: Counter = field(default_factory=Counter)
     errors: list[str] = field(default_factory=list)
 
@@ -235,29 +235,6 @@ def _summary(path: str | Path) -> Summary | None:
         return None
 
 
-RUN_BEFORE_STEP_NS = 2_000_000_000
-
-
-def goes_back(summary: Summary) -> bool:
-    """Whether the log time goes back along the file (msgs.stamps: the recording host's
-    clock was set back): a chunk that lies wholly more than a second before the latest
-    start of the chunks written before it, after a run of chunks over at least
-    ``RUN_BEFORE_STEP_NS`` of log time. Its log-time order would interleave the
-    stretches before and after the step. (A message logged late or early among others
-    moves a chunk's start or end, not the whole chunk; a lone chunk of late messages
-    is not a run.)"""
-    run = top = None  # the first and the latest start of the run of chunks so far
-    for c in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
-        if top is not None and set_back(c.message_end_time, top):
-            if top - run >= RUN_BEFORE_STEP_NS:
-                return True
-            run = top = None  # a few messages logged late or early: not a step
-        if run is None:
-            run = top = c.message_start_time
-        top = max(top, c.message_start_time)
-    return False
-
-
 def _has_summary(path: str | Path) -> bool:
     return _summary(path) is not None
 
@@ -270,14 +247,13 @@ def iter_raw(
 ) -> Iterator[RawRecord]:
     """Every message record with its channel and schema, in log-time order when the file
     has a summary, else in file order (a truncated file). With ``as_written`` (replay and
-    analysis), a log whose time goes back (:func:`goes_back`) is read in file order too:
-    the order of recording is the order things happened."""
+    analysis): in file order, put in log-time order within each stretch of a log whose
+    time went back (:mod:`hilnav.log.written_order`: the order things happened)."""
     wanted = set(topics) if topics is not None else None
+    if as_written:
+        yield from in_written_order(_in_file_order(path, wanted, stats), stats)
+        return
     summary = _summary(path)
-    if summary is not None and as_written and goes_back(summary):
-        summary = None
-        if stats is not None:
-            stats.file_order = True
     if summary is not None and summary.chunk_indexes:
         with open(path, "rb") as f:
             for item in iter_indexed(f, summary, wanted):
@@ -298,6 +274,13 @@ def iter_raw(
                     message.data,
                 )
         return
+    yield from _in_file_order(path, wanted, stats)
+
+
+def _in_file_order(
+    path: str | Path, wanted: set[str] | None, stats: ReadStats | None
+) -> Iterator[RawRecord]:
+    """The message records in the order they were written (every chunk read in turn)."""
     res = ScanResult()
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
