@@ -62,6 +62,7 @@ from typing import Any, Literal, Protocol
 from fusion.arrival import ArrivalOrder
 from fusion.increments import NS, GyroDelta, GyroDeltas, OdometryDeltas, OdometryStep, RestBias
 from msgs import GyroSample, RobotOdometry
+from msgs.stamps import set_back
 
 Decision = Literal["fuse", "merged", "deferred", "postponed", "timeout", "unchained"]
 
@@ -261,7 +262,10 @@ class GyroOdometryAlignment:
 
     def _decide(self, step: OdometryStep) -> tuple[Decision, GyroDelta | None]:
         last = self.gyro.last_stamp_ns
-        self.silent_s = math.inf if last is None else (step.t1_ns - last) * NS
+        # No sample yet, or the last from before a clock set back the gyro has not followed
+        # (msgs.stamps): silent.
+        gone = last is None or set_back(step.t1_ns, last)
+        self.silent_s = math.inf if gone else (step.t1_ns - last) * NS
         if last is None or not self.chained:
             # No gyro chain: encoder only; the chain starts at the end of a caught-up step.
             if last is not None and self.silent_s <= self.max_lag_s:

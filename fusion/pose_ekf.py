@@ -106,8 +106,11 @@ class PoseEkf(AlignedInput, PoseEkfCore):
             return self.estimate()
         self.stamp_ns = step.t1_ns
         self._speed_mps = abs(step.ds_m) / step.dt_s if step.dt_s > 0 else 0.0
-        gps_stale = self._last_gps_ns is None or (
-            (step.t1_ns - self._last_gps_ns) * NS > self.params.gps_timeout_s
+        last = self._last_gps_ns
+        gps_stale = (
+            last is None
+            or set_back(step.t1_ns, last)  # the last fix is from before a clock set back
+            or (step.t1_ns - last) * NS > self.params.gps_timeout_s
         )
         if gps_stale and not self.gps_stale:
             self._count.gps_timeouts += 1
@@ -163,8 +166,8 @@ class PoseEkf(AlignedInput, PoseEkfCore):
         p, a = self.params, self._align
         last_o = a.odo.last.stamp_ns if a.odo.last is not None else None
 
-        def old(t: int | None, timeout: float) -> bool:
-            return t is None or (now_ns - t) * NS > timeout
+        def old(t: int | None, timeout: float) -> bool:  # or from before a clock set back
+            return t is None or set_back(now_ns, t) or (now_ns - t) * NS > timeout
 
         return {
             "odometry": old(last_o, p.odometry_timeout_s),

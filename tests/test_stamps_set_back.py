@@ -157,3 +157,33 @@ def test_a_clock_set_forward_at_rest_leaves_the_bias_and_cp_heading_alone() -> N
             cp.take_gyro(t, 0.0)
         widths.append(cp.box().theta.hi - cp.box().theta.lo)
     assert widths[1] - widths[0] <= 2 * cfg.gyro_drift_bound_radps * GYRO_GAP_S + 1e-9
+
+
+def test_a_gyro_silent_since_before_a_set_back_is_silent() -> None:
+    """The odometry goes on after a clock set back and the gyro stops at the step: its
+    last sample, from before the step, is not taken as fresh (the steps are the encoders'
+    alone, the turn followed), and the pose EKF calls the GPS from before it stale."""
+    from fusion.heading import HeadingFilter
+
+    f = HeadingFilter(arrival=ArrivalOrder(100.0))
+    ekf = PoseEkf(PoseEkfParams(), initial=Pose2D())
+    th = 0.0
+    for i in range(500):  # 5 s, gyro at 100 Hz, odometry at 10 Hz, a GPS fix
+        t = 10**12 + i * 10 * MS
+        f.feed(GyroSample(t, 0.0, 0.0))
+        ekf.feed(GyroSample(t, 0.0, 0.0))
+        if i % 10 == 5:
+            o = RobotOdometry(t, Pose2D(), 0, 0, 0, 0, 12, False, True)
+            f.feed(o)
+            ekf.feed(o)
+    ekf.feed(GpsFix(10**12 + 4_990 * MS, mode=3, quality=1, hdop=1.0, std_lat_m=1.0,
+                    std_lon_m=1.0, east_m=0.0, north_m=0.0))  # fmt: skip
+    for k in range(30):  # 3 s of odometry 10 s earlier, turning 0.01 rad a step; no gyro
+        t = 10**12 - 5 * 10**9 + k * 100 * MS
+        th += 0.01
+        o = RobotOdometry(t, Pose2D(0.0, 0.0, th), 0, 0, 0, 0.1, 12, True, True)
+        f.feed(o)
+        ekf.feed(o)
+    assert f.estimate().theta_rad == pytest.approx(th - 0.02, abs=0.015)  # minus 2 steps
+    assert f.counters()["steps_encoder_only"] >= 20
+    assert ekf.gps_stale
