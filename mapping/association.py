@@ -49,14 +49,9 @@ module that holds it):
   :mod:`mapping.pose_graph`) and the map rebuilt at its poses, kept only if it draws
   the walls in no more occupied cells than the association's own map.
 
-Modules: :mod:`mapping.association_config` (the parameters), :mod:`mapping.scan_records`
-(the scans, the nodes and the window), :mod:`mapping.pose_samples` (the sample cloud:
-spread, weights, resampling, tempering), :mod:`mapping.beam_model` (eq. 7-8 against the
-map), :mod:`mapping.loop_correction` (the acceptance tests and the re-alignment),
-:mod:`mapping.heading_drift` (the drift hypotheses), :mod:`mapping.reinsertion` (the
-snapshots and the rebuild after a correction), :mod:`mapping.se2` (pose algebra).
-This module keeps the state (estimate, cloud, maps, snapshots, records, the drift test)
-and runs them scan by scan. Every scan goes into the map, ``ref_lag_m`` later into the
+The parameters are :mod:`mapping.association_config`'s. This module keeps the state
+(estimate, cloud, maps, snapshots, records, the drift test) and runs the modules above
+scan by scan. Every scan goes into the map, ``ref_lag_m`` later into the
 reference map (its cells then taken from the first insertion: :mod:`mapping.ir_memo`)
 and into each drift hypothesis' map (the four sharing the lattice of the cones:
 ``IrInverseModel.integrate_each``).
@@ -75,7 +70,7 @@ from mapping.grid import GridConfig, OccupancyGrid
 from mapping.heading_drift import Adoption, DriftBank, drifted_step
 from mapping.ir_inverse import KIND_SKIP, InverseModelConfig, IrInverseModel, scan_kinds
 from mapping.loop_correction import HeldOut, check_loop
-from mapping.loop_graph import LoopGraph, occupied_cells, rebuilt_map, scan_hits, window_ends
+from mapping.loop_graph import LoopGraph, graph_map, scan_hits, window_ends
 from mapping.pose_samples import spread
 from mapping.reinsertion import Rebuild, Snapshot, keep_snapshot, realign
 from mapping.scan_records import ScanRecords
@@ -243,23 +238,12 @@ class SampleAssociation:
         it replaces (the same scans at poses that agree put each wall in fewer cells;
         passes that disagree double it): otherwise the association's poses and map
         stay, and :attr:`graph_outcome` says why."""
-        g = self._graph
-        new = g.solve(self._rec.poses) if g is not None else None
-        if new is None:
-            self.graph_outcome = "no loop edge" if g is not None else "off"
-            return self.grid
         r = self._rec
-        try:
-            grid, updates = rebuilt_map(r, new, self.model, self._grid_config)
-        except ValueError as e:  # the graph's poses need more than max_cells
-            self.graph_outcome = f"kept the association's map (the graph's map: {e})"
-            return self.grid
+        self.graph_outcome, new, grid, updates = graph_map(
+            self._graph, r, self.grid, self.model, self._grid_config
+        )
         self.cell_updates += updates
-        occ_old, occ_new = occupied_cells(self.grid), occupied_cells(grid)
-        self.graph_outcome = (f"{len(g.loops)} loop edges, {len(set(g.scans))} nodes: "
-                              f"occupied cells {occ_old} -> {occ_new}")  # fmt: skip
-        if occ_new > occ_old:
-            self.graph_outcome = f"kept the association's map ({self.graph_outcome})"
+        if new is None or grid is None:
             return self.grid
         for i in range(len(r)):
             r.poses[i] = new[i]
@@ -267,7 +251,6 @@ class SampleAssociation:
         self.grid, self._ref, self._ref_upto, self._rebuild = grid, grid, len(r), None
         self._estimate = new[-1].copy()
         self._pending = self._bank = None
-        self.graph_outcome = f"re-posed ({self.graph_outcome})"
         return self.grid
 
     def log_likelihood(

@@ -265,3 +265,31 @@ def occupied_cells(grid: OccupancyGrid) -> int:
     """The cells a map calls occupied (its walls' extent: the same walls drawn from
     poses that agree take fewer)."""
     return int((grid.trinary() == 1).sum())
+
+
+def graph_map(
+    graph: LoopGraph | None,
+    rec: ScanRecords,
+    grid: OccupancyGrid,
+    model: IrInverseModel,
+    config: GridConfig | None,
+) -> tuple[str, np.ndarray | None, OccupancyGrid | None, int]:
+    """The graph's answer at the end of a run (:meth:`mapping.association.
+    SampleAssociation.finish`): (what it did, the re-posed scans, their map, the cell
+    updates spent). The poses and map are None when the association's stay: no loop
+    edge, a map at the graph's poses that would need more than ``max_cells``, or one
+    that draws the walls in more occupied cells than ``grid``."""
+    new = graph.solve(rec.poses) if graph is not None else None
+    if new is None:
+        return ("no loop edge" if graph is not None else "off"), None, None, 0
+    assert graph is not None
+    try:
+        rebuilt, updates = rebuilt_map(rec, new, model, config)
+    except ValueError as e:  # the graph's poses need more than max_cells
+        return f"kept the association's map (the graph's map: {e})", None, None, 0
+    occ_old, occ_new = occupied_cells(grid), occupied_cells(rebuilt)
+    what = (f"{len(graph.loops)} loop edges, {len(set(graph.scans))} nodes: "
+            f"occupied cells {occ_old} -> {occ_new}")  # fmt: skip
+    if occ_new > occ_old:
+        return f"kept the association's map ({what})", None, None, updates
+    return f"re-posed ({what})", new, rebuilt, updates
