@@ -19,17 +19,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from drivers.clock import CLOCK
+from drivers.clock import now_ns
 from msgs import DeviceDiagnostics
 
 Clock = Callable[[], int]
 RawHook = Callable[[bytes, int], None]
 
 
-def wall_clock_ns() -> int:
-    """Default clock of drivers: UTC wall time in nanoseconds that never goes back
-    (:mod:`drivers.clock`: it follows the wall clock's steps forward, not back)."""
-    return CLOCK.now_ns()
+wall_clock_ns = now_ns
+"""Default clock of drivers: UTC wall time in nanoseconds that never goes back
+(:mod:`drivers.clock`: it follows the wall clock's steps forward, not back)."""
 
 
 @dataclass

@@ -11,7 +11,7 @@ messages come from the drivers (the pipeline); four rules:
    fusion.increments.GyroDeltas would drop (not newer) or take for a discontinuity (a
    large angle change over a tiny interval, replaced by rate x dt: real rotation lost).
    The angles are untouched; the restamped times catch up with the real ones at the next
-   gap. A stamp more than ``jump_back_s`` older than the last is a clock set back: it is
+   gap. A stamp more than a second older than the last is a clock set back (msgs.stamps): it is
    followed, not restamped.
 2. *Odometry waits only for a gyro sample that is due*: an odometry message is taken the
    moment it arrives when the gyro has caught up with it, i.e. its next sample is not due
@@ -41,22 +41,19 @@ message stamps (integer ns); the output depends only on the input sequence.
 from __future__ import annotations
 
 from msgs import GyroSample, RobotOdometry
-from msgs.stamps import SetBackGate
+from msgs.stamps import SetBackGate, set_back
 
 
 class ArrivalOrder:
     """Gyro restamping and odometry holding (see the module docstring)."""
 
-    def __init__(
-        self, gyro_rate_hz: float, jump_back_s: float = 1.0, patience_s: float = 1.0
-    ) -> None:
+    def __init__(self, gyro_rate_hz: float, patience_s: float = 1.0) -> None:
         if not gyro_rate_hz > 0.0:
             raise ValueError(f"ArrivalOrder: gyro_rate_hz must be > 0, got {gyro_rate_hz!r}")
         if not patience_s >= 0.0:
             raise ValueError(f"ArrivalOrder: patience_s must be >= 0, got {patience_s!r}")
         self.period_ns = int(1e9 / gyro_rate_hz)
         self.spacing_ns = int(0.25e9 / gyro_rate_hz)
-        self.jump_back_ns = int(jump_back_s * 1e9)
         self.patience_ns = int(patience_s * 1e9)
         self.held: RobotOdometry | None = None
         self.dropped = 0
@@ -70,7 +67,7 @@ class ArrivalOrder:
     def gyro(self, g: GyroSample) -> tuple[RobotOdometry | None, GyroSample]:
         """The odometry to take before this sample (rule 2), and the sample restamped (rule 1)."""
         done = self._released_ns
-        if done is not None and done - self.jump_back_ns <= g.stamp_ns <= done:
+        if done is not None and g.stamp_ns <= done and not set_back(g.stamp_ns, done):
             self.late += 1
         self._gyro_read_ns = g.stamp_ns
         before = None
@@ -129,7 +126,7 @@ class ArrivalOrder:
     def _restamp(self, g: GyroSample) -> GyroSample:
         last = self._gyro_ns
         if last is not None and g.stamp_ns < last + self.spacing_ns:
-            if g.stamp_ns < last - self.jump_back_ns:
+            if set_back(g.stamp_ns, last):
                 self._gyro_ns = g.stamp_ns  # the clock was set back: follow it
                 return g
             g = GyroSample(last + self.spacing_ns, g.rate_radps, g.angle_rad, g.angle_wrapped_rad)

@@ -77,6 +77,9 @@ from mapping.scan_records import ScanRecords
 from mapping.se2 import compose, relative, wrap
 from msgs import AssociationReport, HeadingEstimate, IrScan, Pose2D
 
+Moved = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
+"""(the estimate after a step, the input's step, the step drift-corrected)."""
+
 FIT_MARGIN_M = 10.0
 """A scan is refused this close to the grid's limit: the drift hypotheses' maps take it
 at poses up to a few metres from the estimate's."""
@@ -189,16 +192,15 @@ class SampleAssociation:
                 f"IR scan has {len(kinds)} channels but {len(self.mounts)} mounts are "
                 "configured: give one (x, y, yaw) mount per channel"
             )
-        box = self.model.scan_box(
-            self._moved(p_in), self.mounts, self.grid.resolution, FIT_MARGIN_M
-        )
+        moved = self._moved(p_in)
+        box = self.model.scan_box(moved[0], self.mounts, self.grid.resolution, FIT_MARGIN_M)
         if not self.grid.fits(*box):
             # Beyond the grid's max_cells: refused before anything changes (a record the
             # maps could not take would stop every later insertion). The next scan taken
             # moves the estimate over the whole span, as after the motion filter's gaps.
             self.refused_scans += 1
             return None
-        self._move(p_in, var)
+        self._move(p_in, var, moved)
         self.skipped_readings += int((kinds == KIND_SKIP).sum())
         sigma = math.sqrt(max(self._var_base + max(var - self._var_at, 0.0), 0.0))
         self._sigma = sigma
@@ -261,26 +263,29 @@ class SampleAssociation:
         return self._beam_model.log_likelihood(self._ref, poses, sens, ranges, kinds)
 
     # -- internals -------------------------------------------------------------------------
-    def _moved(self, p_in: np.ndarray) -> np.ndarray:
-        """Where :meth:`_move` would put the estimate (nothing changes)."""
+    def _moved(self, p_in: np.ndarray) -> Moved:
+        """Where the step to ``p_in`` puts the estimate, with the input's step and the
+        step drift-corrected (None, None for the first); nothing changes."""
         if self._estimate is None or self._prev_in is None:
-            return p_in
-        return compose(self._estimate, drifted_step(relative(self._prev_in, p_in), self._drift))
+            return p_in, None, None
+        rel_in = relative(self._prev_in, p_in)
+        rel = drifted_step(rel_in, self._drift)
+        return compose(self._estimate, rel), rel_in, rel
 
-    def _move(self, p_in: np.ndarray, var: float) -> None:
-        """Dead-reckon the estimate and spread the cloud by the step to ``p_in``."""
-        if self._estimate is None:
+    def _move(self, p_in: np.ndarray, var: float, moved: Moved) -> None:
+        """Dead-reckon the estimate to ``moved`` (:meth:`_moved` of ``p_in``) and spread
+        the cloud by the step."""
+        estimate, rel_in, rel = moved
+        if rel_in is None or rel is None:
             self._estimate = p_in.copy()
             self._step_in = p_in.copy()
             self._particles = np.tile(p_in, (self.config.samples, 1))
         else:
-            rel_in = relative(self._prev_in, p_in)
             if self._bank is not None:
                 self._bank.move(rel_in)
-            rel = drifted_step(rel_in, self._drift)
             d = float(math.hypot(rel[0], rel[1]))
             self._travel += d
-            self._estimate = compose(self._estimate, rel)
+            self._estimate = estimate
             self._step_in = rel_in
             self._turn += abs(float(rel[2]))
             dvar = max(0.0, var - self._prev_var)

@@ -45,6 +45,7 @@ from mapping.ir_cone import (
     lattice,
 )
 from mapping.ir_memo import UpdateMemo
+from mapping.se2 import compose
 from msgs import IrScan, Pose2D
 
 __all__ = ["attenuate"]  # eq. 6 lives with the cone cells (mapping.ir_cone)
@@ -189,9 +190,8 @@ class IrInverseModel:
         taken at ``pose`` (x, y, theta) from sensors at ``mounts`` (K, 3): the widest cone
         of :meth:`reach` and the largest half-angle (:func:`mapping.ir_cone.cone_extent`),
         widened by ``margin_m``."""
-        c, s = math.cos(float(pose[2])), math.sin(float(pose[2]))
-        x = float(pose[0]) + c * mounts[:, 0] - s * mounts[:, 1]
-        y = float(pose[1]) + s * mounts[:, 0] + c * mounts[:, 1]
+        sens = compose(np.broadcast_to(np.asarray(pose, dtype=float), mounts.shape), mounts)
+        x, y = sens[:, 0], sens[:, 1]
         cfg = self.config
         reach = cfg.max_range_m + max(cfg.hit_halfwidth_m, 0.75 * res)
         r = float(cone_extent(reach, cfg.max_half_angle_rad, res)) + margin_m

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -39,7 +40,7 @@ def test_crossing_interpolates_where_both_scores_fall_below_the_level() -> None:
     assert math.isnan(crossing(err, [0.4, 0.3, 0.2], [0.9, 0.8, 0.7]))  # below at once
 
 
-def test_ir_tolerance_bench_on_a_slice() -> None:
+def test_ir_tolerance_bench_on_a_slice(shared_dir: Path) -> None:
     """On 600 scans: at f = 0 the map is the reference's (no pose error, its precision),
     and the scores fall as the error grows."""
     proc = subprocess.run(
